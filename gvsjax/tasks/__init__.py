@@ -1,0 +1,5 @@
+"""Tasks: functional environments (gymnax-style) over the GVS simulator."""
+
+from gvsjax.tasks.base import Environment, auto_reset_step, make, register, registered
+
+__all__ = ["Environment", "auto_reset_step", "make", "register", "registered"]
