@@ -1,7 +1,27 @@
-"""gvsjax: Geometric Variable-Strain soft-rod simulation and PPO control in JAX."""
+"""gvsjax: Geometric Variable-Strain soft-rod simulation and PPO control in JAX.
+
+    import gvsjax as gv
+    arm = gv.paper_arm(tip_force=5.886)
+    traj = gv.simulate(arm, 1.0, 2e-3, base_angle=lambda t: 3.665 * (t / 2.0) ** 2)
+"""
 
 import jax
 
-# All physics runs in float64 (see the design notes): the fast throw's release
-# state is sensitive at the 1e-6 level and Magnus coefficients lose digits in fp32.
+# All physics runs in float64 (gvs-notes 1.4): the throw's release state is
+# sensitive at the 1e-6 level and the Magnus coefficients lose digits in fp32.
 jax.config.update("jax_enable_x64", True)
+
+from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
+from gvsjax.kinematics import backbone, jacobian_rates, jacobians, tip_state  # noqa: E402
+from gvsjax.model import (  # noqa: E402
+    Joint, Material, PointLoad, PointMass, RigidLink, Robot, SoftLink, StrainBasis, Tendon,
+)
+from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
+from gvsjax.simulate import Trajectory, simulate, stable_step_estimate  # noqa: E402
+
+__all__ = [
+    "Joint", "Material", "PointLoad", "PointMass", "RigidLink", "Robot", "SoftLink", "StrainBasis",
+    "Tendon", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory", "stable_step_estimate",
+    "backbone", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
+    "stiffness_and_damping",
+]

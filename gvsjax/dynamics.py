@@ -1,0 +1,256 @@
+"""Generalized dynamics of a GVS robot: M(q) qdd = F(q, qd, t).
+
+F gathers gravity, Coriolis/centrifugal forces (-C qd), point loads, the
+elastic and Kelvin-Voigt forces (-K q - D qd) and tendon actuation. K and D
+are constant (the reference strain is kept out of Phi q) and are assembled
+once per call from the material; everything is differentiable in the robot's
+leaves (E, eta, loads, sizes ...).
+
+Prescribed (position-controlled) DoFs ``a`` follow a given law; the free DoFs
+``u`` obey M_uu qdd_u = F_u - M_ua qdd_a, and the actuator effort of the
+prescribed DoFs follows by inverse dynamics: tau_a = M_a. qdd - F_a.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from gvsjax import lie
+from gvsjax.kinematics import Point, forward, grid_of, scaled_columns, strain
+from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale, zeros
+from gvsjax.model import RigidLink, Robot, SoftLink
+
+
+# ----------------------------------------------------------------------------
+# section properties and constant matrices
+
+
+@dataclass
+class Section:
+    """Per-unit-length diagonals (6 entries each, twist order)."""
+
+    inertia: tuple  # rho * (J, I, I, A, A, A)
+    stiffness: tuple  # (G J, E I, E I, E A, G A, G A)
+    damping: tuple  # eta * factors * (J, I, I, A, A, A)
+
+
+def section(link: SoftLink) -> Section:
+    r = link.radius
+    area = math.pi * r * r
+    second = math.pi * r**4 / 4.0
+    geo = (2.0 * second, second, second, area, area, area)
+    mat = link.material
+    shear = mat.youngs_modulus / (2.0 * (1.0 + mat.poisson))
+    stiff = (shear, mat.youngs_modulus, mat.youngs_modulus) + (mat.youngs_modulus, shear, shear)
+    return Section(
+        inertia=tuple(mat.density * g for g in geo),
+        stiffness=tuple(s * g for s, g in zip(stiff, geo)),
+        damping=tuple(mat.damping * f * g for f, g in zip(link.damping_factors, geo)),
+    )
+
+
+def _weighted_gram(robot: Robot, li: int, per_component: Sequence) -> list[list]:
+    """sum_i W_i Phi_i^T diag(c) Phi_i for a soft link (n_s x n_s, scalar algebra)."""
+    link = robot.links[li]
+    grid = grid_of(robot, li)
+    L = link.length
+    n = grid.phi.shape[2]
+    scale = [1.0 / (L * L) if c < 3 else 1.0 for c in range(6)]  # SoRoSim 1/L on angular rows
+    out = [[0] * n for _ in range(n)]
+    for c in range(6):
+        gram = np.einsum("i,ij,ik->jk", grid.w, grid.phi[:, c, :], grid.phi[:, c, :])
+        if not np.any(gram):
+            continue
+        coef = mul(mul(per_component[c], L), scale[c])
+        for j in range(n):
+            for k in range(n):
+                out[j][k] = add(out[j][k], mul(coef, const(gram[j, k])))
+    return out
+
+
+def stiffness_and_damping(robot: Robot) -> tuple[list[list], list[list]]:
+    """K and D (n x n, scalar algebra): sum_i W_i Phi_i^T Sigma Phi_i, likewise for D."""
+    n = robot.n_dofs
+    K = [[0] * n for _ in range(n)]
+    D = [[0] * n for _ in range(n)]
+    for li, (link, (_, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        if not isinstance(link, SoftLink) or end == s0:
+            continue
+        sec = section(link)
+        for big, diag in ((K, sec.stiffness), (D, sec.damping)):
+            block = _weighted_gram(robot, li, diag)
+            for j in range(end - s0):
+                for k in range(end - s0):
+                    big[s0 + j][s0 + k] = block[j][k]
+    return K, D
+
+
+# ----------------------------------------------------------------------------
+# point-wise contributions
+
+
+def _rigid_inertia(link: RigidLink) -> tuple:
+    I = link.inertia
+    return (I[0], I[1], I[2], link.mass, link.mass, link.mass)
+
+
+def _add_body(M, F, pt: Point, inertia_diag: tuple, weight, gravity_world: tuple):
+    """Accumulate W J^T Ms J into M and W J^T (Ms (g_body - psi) + ad_eta^T Ms eta) into F."""
+    Ms = tuple(mul(weight, m) for m in inertia_diag)
+    grav_body = (0, 0, 0) + lie.matTvec(pt.R, gravity_world)
+    Ms_eta = tuple(mul(m, e) for m, e in zip(Ms, pt.eta))
+    wrench = vadd(
+        tuple(mul(m, lie.sub(g, s)) for m, g, s in zip(Ms, grav_body, pt.psi)),
+        lie.ad_transpose(pt.eta, Ms_eta),
+    )
+    MJ = [tuple(mul(m, a) for m, a in zip(Ms, col)) for col in pt.J]
+    n = len(pt.J)
+    for j in range(n):
+        F[j] = add(F[j], dot(pt.J[j], wrench))
+        for k in range(j + 1):
+            M[j][k] = add(M[j][k], dot(pt.J[j], MJ[k]))
+
+
+def _point_of(points: list[Point], link: int, X: float, n_links: int) -> Point:
+    link %= n_links
+    best = [p for p in points if p.link == link and p.kind != "rigid"]
+    kinds = [p for p in points if p.link == link and p.kind == "rigid"]
+    for p in best:
+        if abs(p.X - X) < 1e-12:
+            return p
+    if kinds:  # rigid link: anything but X = 1 acts at the CoM
+        return kinds[0]
+    raise ValueError(f"no sample point at X={X} of link {link}")
+
+
+def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
+    """Generalized tendon force -T * sum_i W_i Phi_i^T (d x t, t), t = unit(w x d + v)."""
+    n = robot.n_dofs
+    tau = [0] * n
+    slices = robot.dof_slices()
+    for td, T in zip(robot.tendons, tension):
+        li = td.link % len(robot.links)
+        link = robot.links[li]
+        _, s0, end = slices[li]
+        grid = grid_of(robot, li)
+        d = (0, mul(td.offset, const(td.direction[0])), mul(td.offset, const(td.direction[1])))
+        inv_L = 1.0 / link.length
+        for i in range(len(grid.X)):
+            if grid.w[i] == 0.0:
+                continue
+            cols = scaled_columns(grid.phi[i], inv_L)
+            xi = strain(cols, q[s0:end])
+            t_raw = vadd(lie.cross(xi[:3], d), xi[3:])
+            inv_norm = 1.0 / jnp.sqrt(lie.as_array(dot(t_raw, t_raw)))
+            t = vscale(inv_norm, t_raw)
+            screw = lie.cross(d, t) + t
+            coef = mul(mul(T, const(-grid.w[i])), link.length)
+            for k, col in enumerate(cols):
+                tau[s0 + k] = add(tau[s0 + k], mul(coef, dot(col, screw)))
+    return tau
+
+
+def mass_and_forces(
+    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = ()
+) -> tuple[list[list], list]:
+    """M (lower triangle filled, scalar algebra) and F with every force included.
+
+    q, qd: n scalars each; tension: one value per tendon (N, >= 0).
+    """
+    n = robot.n_dofs
+    points = forward(robot, q, qd, with_psi=True)
+    g_world = tuple(mul(robot.gravity, const(c)) for c in robot.gravity_direction)
+    M = [[0] * n for _ in range(n)]
+    F = [0] * n
+    n_links = len(robot.links)
+    for pt in points:
+        link = robot.links[pt.link]
+        if pt.kind == "soft" and not lie.is_zero(pt.weight):
+            _add_body(M, F, pt, section(link).inertia, pt.weight, g_world)
+        elif pt.kind == "rigid":
+            _add_body(M, F, pt, _rigid_inertia(link), 1.0, g_world)
+    for pm in robot.masses:
+        pt = _point_of(points, pm.link, pm.X, n_links)
+        _add_body(M, F, pt, (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0, g_world)
+    for load in robot.loads:
+        pt = _point_of(points, load.link, load.X, n_links)
+        f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
+        f_body = f if load.follower else lie.matTvec(pt.R, f)
+        wrench = (0, 0, 0) + f_body
+        for j in range(n):
+            F[j] = add(F[j], dot(pt.J[j], wrench))
+    K, D = stiffness_and_damping(robot)
+    tau = _tendon_force(robot, q, tension) if robot.tendons else [0] * n
+    for j in range(n):
+        elastic = total([mul(K[j][k], q[k]) for k in range(n)] + [mul(D[j][k], qd[k]) for k in range(n)])
+        F[j] = add(sub(F[j], elastic), tau[j])
+    return M, F
+
+
+# ----------------------------------------------------------------------------
+# prescribed / free partition
+
+
+def split_solve(robot: Robot, M, F, qdd_a: Sequence) -> list:
+    """qdd_u from M_uu qdd_u = F_u - M_ua qdd_a."""
+    a, u = robot.prescribed, robot.free
+    Mf = lambda i, j: M[i][j] if i >= j else M[j][i]  # noqa: E731 (symmetric lookup)
+    rhs = [sub(F[i], total([mul(Mf(i, k), x) for k, x in zip(a, qdd_a)])) for i in u]
+    A = [[Mf(i, j) for j in u] for i in u]
+    return lie.solve_spd(A, rhs)
+
+
+def prescribed_effort(robot: Robot, M, F, qdd: Sequence) -> list:
+    """Inverse dynamics of the prescribed DoFs: tau_a = M_a. qdd - F_a (N m or N)."""
+    n = robot.n_dofs
+    Mf = lambda i, j: M[i][j] if i >= j else M[j][i]  # noqa: E731
+    return [sub(total([mul(Mf(i, k), qdd[k]) for k in range(n)]), F[i]) for i in robot.prescribed]
+
+
+def full_matrix(M, n: int) -> jnp.ndarray:
+    """The symmetric n x n array from a lower-triangle scalar-algebra matrix."""
+    rows = [[lie.as_array(M[i][j] if i >= j else M[j][i]) for j in range(n)] for i in range(n)]
+    return jnp.stack([jnp.stack(r) for r in rows])
+
+
+# ----------------------------------------------------------------------------
+# energy (for tests and monitoring)
+
+
+def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
+    """Kinetic, elastic and potential (gravity and constant world-fixed loads) energy, J."""
+    n = robot.n_dofs
+    qs = [q[i] for i in range(n)]
+    qds = [qd[i] for i in range(n)]
+    points = forward(robot, qs, qds, with_psi=False)
+    g_world = tuple(mul(robot.gravity, const(c)) for c in robot.gravity_direction)
+    kinetic, grav, loads = 0, 0, 0
+
+    def body(pt, diag, weight):
+        nonlocal kinetic, grav
+        kinetic = add(kinetic, mul(0.5 * 1.0, mul(weight, dot(pt.eta, tuple(mul(m, e) for m, e in zip(diag, pt.eta))))))
+        grav = sub(grav, mul(mul(weight, diag[3]), dot(g_world, pt.p)))
+
+    for pt in points:
+        link = robot.links[pt.link]
+        if pt.kind == "soft" and not lie.is_zero(pt.weight):
+            body(pt, section(link).inertia, pt.weight)
+        elif pt.kind == "rigid":
+            body(pt, _rigid_inertia(link), 1.0)
+    for pm in robot.masses:
+        body(_point_of(points, pm.link, pm.X, len(robot.links)), (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0)
+    for load in robot.loads:
+        if load.follower:
+            continue  # a follower load has no potential
+        pt = _point_of(points, load.link, load.X, len(robot.links))
+        f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
+        loads = sub(loads, dot(f, pt.p))
+    K, _ = stiffness_and_damping(robot)
+    elastic = mul(0.5, total([mul(mul(K[j][k], qs[j]), qs[k]) for j in range(n) for k in range(n)]))
+    return {k: lie.as_array(v) for k, v in
+            dict(kinetic=kinetic, elastic=elastic, gravity=grav, loads=loads).items()}

@@ -1,0 +1,261 @@
+"""Strain bases, quadrature grids and the forward recursion along the chain.
+
+One pass from the base to the tip gives, at every sample point, the world pose
+(R, p), the body-frame geometric Jacobian J (6 x n), the body twist eta = J qd
+and psi = Jdot qd. Soft links advance between sample points with a 4th-order
+Magnus (Zanna collocation) step, as SoRoSim does (gvs-notes sections 3-4).
+
+Public helpers return ordinary arrays: ``backbone`` (positions along the
+robot), ``tip_state`` (tip position and velocity), ``jacobians`` (J and Jdot at
+every sample point).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from gvsjax import lie
+from gvsjax.lie import add, const, mul, vadd, vscale, zeros
+from gvsjax.model import RigidLink, Robot, SoftLink, StrainBasis
+
+XI_STAR = (0, 0, 0, 1.0, 0, 0)  # straight, unstretched, unsheared reference strain
+
+
+# ----------------------------------------------------------------------------
+# static discretisation
+
+
+@dataclass(frozen=True)
+class LinkGrid:
+    """Sample points of one soft link and the basis values the recursion needs.
+
+    X: (nip,) points in [0, 1], Gauss-Legendre nodes bracketed by 0 and 1 (plus
+    any load points); w: (nip,) quadrature weights as fractions of L (0 at the
+    ends and at load points); phi: (nip, 6, n) raw basis at the points;
+    phi1, phi2: (nip-1, 6, n) raw basis at the two Zanna collocation points of
+    each interval; dX: (nip-1,) interval lengths.
+    """
+
+    X: np.ndarray
+    w: np.ndarray
+    phi: np.ndarray
+    phi1: np.ndarray
+    phi2: np.ndarray
+    dX: np.ndarray
+
+
+@functools.lru_cache(maxsize=None)
+def link_grid(basis: StrainBasis, n_gauss: int, extra: tuple[float, ...] = ()) -> LinkGrid:
+    nodes, weights = np.polynomial.legendre.leggauss(n_gauss)
+    pts = {0.0: 0.0, 1.0: 0.0}
+    for x, wq in zip((nodes + 1) / 2, weights / 2):
+        pts[float(x)] = float(wq)
+    for x in extra:
+        pts.setdefault(float(x), 0.0)
+    X = np.array(sorted(pts))
+    w = np.array([pts[x] for x in X])
+    dX = np.diff(X)
+    c1, c2 = 0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6
+    phi = np.stack([basis.raw(x) for x in X])
+    phi1 = np.stack([basis.raw(a + c1 * d) for a, d in zip(X[:-1], dX)])
+    phi2 = np.stack([basis.raw(a + c2 * d) for a, d in zip(X[:-1], dX)])
+    return LinkGrid(X, w, phi, phi1, phi2, dX)
+
+
+def extra_points(robot: Robot, link_index: int) -> tuple[float, ...]:
+    """Material points of a link where a load or mass acts (sampled exactly)."""
+    n = len(robot.links)
+    return tuple(
+        sorted({float(m.X) for m in (*robot.loads, *robot.masses) if m.link % n == link_index})
+    )
+
+
+def grid_of(robot: Robot, link_index: int) -> LinkGrid:
+    link = robot.links[link_index]
+    return link_grid(link.basis, link.n_gauss, extra_points(robot, link_index))
+
+
+def scaled_columns(raw: np.ndarray, inv_length) -> list[tuple]:
+    """Columns of Phi = diag(1/L, 1/L, 1/L, 1, 1, 1) Phi_raw as 6-tuples (SoRoSim scaling)."""
+    return [
+        tuple(mul(const(raw[r, k]), inv_length) if r < 3 else const(raw[r, k]) for r in range(6))
+        for k in range(raw.shape[1])
+    ]
+
+
+def strain(cols: Sequence[tuple], q: Sequence) -> tuple:
+    """xi = Phi q + xi*."""
+    out = XI_STAR
+    for col, qk in zip(cols, q):
+        out = vadd(out, vscale(qk, col))
+    return out
+
+
+def strain_rate(cols: Sequence[tuple], qd: Sequence) -> tuple:
+    out = zeros(6)
+    for col, qk in zip(cols, qd):
+        out = vadd(out, vscale(qk, col))
+    return out
+
+
+# ----------------------------------------------------------------------------
+# the recursion
+
+
+@dataclass
+class Point:
+    """Kinematic state at one sample point (scalar-algebra values).
+
+    kind: "soft" (a rod sample with quadrature weight ``weight``, physical
+    metres), "rigid" (a rigid link's CoM) or "end" (a rigid link's far end).
+    """
+
+    link: int
+    X: float
+    kind: str
+    weight: Any
+    R: tuple
+    p: tuple
+    J: list
+    eta: tuple
+    psi: tuple
+
+
+def _apply_inv(R, p, y):
+    return lie.ad_inv_apply(R, p, y)
+
+
+def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
+    """One step g <- g exp(O): update pose, J, eta, psi (gvs-notes section 4)."""
+    R, p, J, eta, psi = state
+    J = list(J)
+    for k, col in zip(cols_idx, S_cols):
+        J[k] = vadd(J[k], col)
+    if with_psi:
+        psi = _apply_inv(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
+    eta = _apply_inv(R_s, p_s, vadd(eta, S_qd))
+    J = [_apply_inv(R_s, p_s, c) for c in J]
+    R, p = lie.compose(R, p, R_s, p_s)
+    return R, p, J, eta, psi
+
+
+def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> list[Point]:
+    """Run the base-to-tip recursion and return every sample point.
+
+    q, qd: sequences of n scalars (arrays of shape () or scalar-algebra values).
+    """
+    n = robot.n_dofs
+    R = lie.const_mat(robot.base_rotation)
+    p = zeros(3)
+    state = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
+    points: list[Point] = []
+    for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        if link.joint.n_dofs:
+            phi_j = tuple(const(a) for a in link.joint.twist_basis())
+            O = vscale(q[j0], phi_j)
+            Od = vscale(qd[j0], phi_j)
+            R_s, p_s = lie.exp_se3(O)
+            # single-DoF joint: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
+            state = _advance(state, R_s, p_s, [phi_j], [j0], Od, zeros(6), with_psi)
+        if isinstance(link, SoftLink):
+            state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
+        else:
+            state = _rigid_link(li, link, state, points)
+    return points
+
+
+def _record(points, li, X, kind, weight, state):
+    R, p, J, eta, psi = state
+    points.append(Point(li, X, kind, weight, R, p, J, eta, psi))
+
+
+def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
+    grid = grid_of(robot, li)
+    L = link.length
+    inv_L = 1.0 / L
+    idx = list(range(s0, s0 + len(qs)))
+    _record(points, li, float(grid.X[0]), "soft", mul(const(grid.w[0]), L), state)
+    for i in range(len(grid.dX)):
+        h = mul(const(grid.dX[i]), L)
+        c = mul(lie.SQRT3 / 12.0, mul(h, h))
+        half_h = mul(0.5, h)
+        P1 = scaled_columns(grid.phi1[i], inv_L)
+        P2 = scaled_columns(grid.phi2[i], inv_L)
+        xi1, xi2 = strain(P1, qs), strain(P2, qs)
+        xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
+        # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
+        O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
+        Od = vadd(vscale(half_h, vadd(xd1, xd2)), vscale(c, vadd(lie.ad(xi1, xd2), lie.ad(xd1, xi2))))
+        Z = [
+            vadd(vscale(half_h, vadd(a, b)), vscale(c, lie.vsub(lie.ad(xi1, b), lie.ad(xi2, a))))
+            for a, b in zip(P1, P2)
+        ]
+        Zd_qd = vscale(mul(2.0, c), lie.ad(xd1, xd2))
+        T_out, T_rate = lie.dexp_and_rate(O, Od, Z + [Od, Zd_qd], rate_of=Od if with_psi else None)
+        S_cols, S_qd, T_Zd_qd = T_out[:-2], T_out[-2], T_out[-1]
+        Sdot_qd = vadd(T_rate, T_Zd_qd) if with_psi else None
+        R_s, p_s = lie.exp_se3(O)
+        state = _advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
+        _record(points, li, float(grid.X[i + 1]), "soft", mul(const(grid.w[i + 1]), L), state)
+    return state
+
+
+def _translate(state, offset):
+    R, p, J, eta, psi = state
+    I3 = lie.IDENTITY3
+    return _advance((R, p, J, eta, psi), I3, offset, [], [], zeros(6), zeros(6), True)
+
+
+def _rigid_link(li, link: RigidLink, state, points):
+    com = tuple(link.com)
+    state = _translate(state, com)
+    _record(points, li, 0.5, "rigid", 1.0, state)
+    tip = (link.length - com[0], -com[1], -com[2])
+    state = _translate(state, tip)
+    _record(points, li, 1.0, "end", 0, state)
+    return state
+
+
+# ----------------------------------------------------------------------------
+# array-level helpers
+
+
+def _scalars(x: jax.Array) -> list:
+    return [x[i] for i in range(x.shape[0])]
+
+
+def backbone(robot: Robot, q: jax.Array) -> jax.Array:
+    """World positions of every sample point along the robot, shape (n_points, 3)."""
+    q_s = _scalars(jnp.asarray(q))
+    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    return jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
+
+
+def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """World position (3,) and linear velocity (3,) of the robot's last point."""
+    pt = forward(robot, _scalars(jnp.asarray(q)), _scalars(jnp.asarray(qd)), with_psi=False)[-1]
+    vel = lie.matvec(pt.R, pt.eta[3:])
+    return (
+        jnp.stack([lie.as_array(a) for a in pt.p]),
+        jnp.stack([lie.as_array(a) for a in vel]),
+    )
+
+
+def jacobians(robot: Robot, q: jax.Array) -> jax.Array:
+    """Body-frame geometric Jacobians at every sample point, shape (n_points, 6, n)."""
+    q_s = _scalars(jnp.asarray(q))
+    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    return jnp.stack(
+        [jnp.stack([jnp.stack([lie.as_array(a) for a in col]) for col in pt.J], axis=1) for pt in pts]
+    )
+
+
+def jacobian_rates(robot: Robot, q: jax.Array, qd: jax.Array) -> jax.Array:
+    """Jdot at every sample point (n_points, 6, n): the derivative of J(q) along qd."""
+    return jax.jvp(lambda x: jacobians(robot, x), (q,), (qd,))[1]

@@ -1,0 +1,231 @@
+"""The robot description: immutable pytrees of joints, links, loads and tendons.
+
+Physical numbers (lengths, moduli, masses, forces) are pytree *leaves*, so they
+can be traced, batched with ``vmap`` and differentiated. Topology and
+discretisation (joint types and axes, which strains are active, basis family,
+quadrature size) are *static* fields: they fix the shapes and the structural
+sparsity of the computation, and changing them recompiles.
+
+Units are SI throughout. Frames: a link's local x axis is its centreline
+tangent; y and z are the section axes. Twists are ``(angular, linear)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from flax import struct
+
+STRAIN_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint at the base of a link.
+
+    kind: "revolute" (rotation about ``axis``), "prismatic" (translation along
+    ``axis``) or "fixed" (no DoF). ``axis`` is a unit 3-vector in the parent's
+    frame at the joint.
+    """
+
+    kind: str = "revolute"
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self):
+        if self.kind not in ("revolute", "prismatic", "fixed"):
+            raise ValueError(
+                f"Joint.kind={self.kind!r} is not allowed; choose revolute, prismatic or fixed"
+            )
+        n = math.sqrt(sum(a * a for a in self.axis))
+        if len(self.axis) != 3 or not abs(n - 1.0) < 1e-9:
+            raise ValueError(f"Joint.axis={self.axis!r} must be a unit 3-vector")
+
+    @property
+    def n_dofs(self) -> int:
+        return 0 if self.kind == "fixed" else 1
+
+    def twist_basis(self) -> tuple[float, ...]:
+        """Phi_j: the joint twist per unit joint coordinate."""
+        if self.kind == "revolute":
+            return tuple(self.axis) + (0.0, 0.0, 0.0)
+        if self.kind == "prismatic":
+            return (0.0, 0.0, 0.0) + tuple(self.axis)
+        return (0.0,) * 6
+
+
+@dataclass(frozen=True)
+class StrainBasis:
+    """Which strain components are active and the polynomial order of each.
+
+    ``orders[c]`` is the polynomial order of strain component ``c`` (in the
+    order of ``STRAIN_NAMES``), or -1 when that component is inactive (held at
+    its reference value). Component ``c`` with order ``o`` contributes ``o + 1``
+    DoFs. ``kind`` is "monomial" (X^j) or "legendre" (P_j(2X - 1), orthogonal on
+    [0, 1]; better conditioned for high orders). Columns are component-major.
+    """
+
+    orders: tuple[int, int, int, int, int, int] = (-1, -1, 1, -1, -1, -1)
+    kind: str = "monomial"
+
+    def __post_init__(self):
+        if self.kind not in ("monomial", "legendre"):
+            raise ValueError(f"StrainBasis.kind={self.kind!r}; choose monomial or legendre")
+        if len(self.orders) != 6 or any((not isinstance(o, int)) or o < -1 for o in self.orders):
+            raise ValueError(
+                f"StrainBasis.orders={self.orders!r} must be 6 ints >= -1 (-1 = inactive)"
+            )
+
+    @property
+    def n_dofs(self) -> int:
+        return sum(o + 1 for o in self.orders)
+
+    def raw(self, X: float) -> np.ndarray:
+        """Phi_raw(X), shape (6, n_dofs), before SoRoSim's 1/L scaling of angular rows."""
+        out = np.zeros((6, self.n_dofs))
+        col = 0
+        for c, order in enumerate(self.orders):
+            for j in range(order + 1):
+                out[c, col] = self._function(j, X)
+                col += 1
+        return out
+
+    def _function(self, j: int, X: float) -> float:
+        if self.kind == "monomial":
+            return X**j
+        x = 2.0 * X - 1.0
+        p_prev, p = 1.0, x
+        if j == 0:
+            return 1.0
+        for k in range(1, j):
+            p_prev, p = p, ((2 * k + 1) * x * p - k * p_prev) / (k + 1)
+        return p
+
+
+@struct.dataclass
+class Material:
+    """Linear elastic, Kelvin-Voigt viscous material.
+
+    damping is SoRoSim's "material damping" eta (Pa s); see
+    ``SoftLink.damping_factors`` for how it maps to each strain.
+    """
+
+    youngs_modulus: Any = 5e6
+    density: Any = 1000.0
+    damping: Any = 1e5
+    poisson: Any = 0.5
+
+
+@struct.dataclass
+class SoftLink:
+    """A Cosserat rod of circular section, straight and unstretched at rest.
+
+    The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
+    by default (SoRoSim's convention); ``damping_factors`` scales each entry
+    of ``diag(J, I, I, A, A, A)`` and exists for ablation.
+    """
+
+    length: Any = 1.0
+    radius: Any = 0.05
+    material: Material = Material()
+    basis: StrainBasis = struct.field(pytree_node=False, default=StrainBasis())
+    joint: Joint = struct.field(pytree_node=False, default=Joint())
+    n_gauss: int = struct.field(pytree_node=False, default=5)
+    damping_factors: tuple = struct.field(pytree_node=False, default=(1.0, 3.0, 3.0, 3.0, 1.0, 1.0))
+
+    @property
+    def n_dofs(self) -> int:
+        return self.joint.n_dofs + self.basis.n_dofs
+
+
+@struct.dataclass
+class RigidLink:
+    """A rigid body: joint at its base, centre of mass at ``com`` (joint
+    frame), principal inertia ``inertia`` (kg m^2, about the CoM, joint-frame
+    axes) and its far end, where the next link starts, at (length, 0, 0)."""
+
+    mass: Any = 1.0
+    inertia: Any = (1e-3, 1e-3, 1e-3)
+    com: Any = (0.0, 0.0, 0.0)
+    length: Any = 0.0
+    joint: Joint = struct.field(pytree_node=False, default=Joint())
+
+    @property
+    def n_dofs(self) -> int:
+        return self.joint.n_dofs
+
+
+@struct.dataclass
+class PointLoad:
+    """A force of ``magnitude`` newtons along the unit vector ``direction``,
+    at material coordinate ``X`` in [0, 1] of link ``link`` (for a rigid link,
+    X = 1 is its far end, anything else its CoM). ``follower=False``: the
+    direction is fixed in the world; True: it turns with the section."""
+
+    magnitude: Any = 0.0
+    link: int = struct.field(pytree_node=False, default=-1)
+    X: float = struct.field(pytree_node=False, default=1.0)
+    direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
+    follower: bool = struct.field(pytree_node=False, default=False)
+
+
+@struct.dataclass
+class PointMass:
+    """An inertial point mass (kg), weighed by gravity, at ``X`` of ``link``."""
+
+    mass: Any = 0.0
+    link: int = struct.field(pytree_node=False, default=-1)
+    X: float = struct.field(pytree_node=False, default=1.0)
+
+
+@struct.dataclass
+class Tendon:
+    """A straight tendon along soft link ``link``, parallel to the midline at
+    ``offset`` metres in the section direction ``direction`` (a unit vector in
+    the local y-z plane), fixed at the link's tip. Tension is >= 0 and pulls
+    the tip towards the base."""
+
+    offset: Any = 0.025
+    link: int = struct.field(pytree_node=False, default=-1)
+    direction: tuple = struct.field(pytree_node=False, default=(1.0, 0.0))
+
+
+@struct.dataclass
+class Robot:
+    """A serial chain of links from a fixed base, with loads and tendons.
+
+    ``prescribed`` lists the indices (into q) of position-controlled DoFs;
+    their motion is given to ``simulate`` and the rest is integrated.
+    ``base_rotation`` (3x3, static) orients the first joint frame in the world.
+    """
+
+    links: tuple
+    gravity: Any = 9.81
+    loads: tuple = ()
+    masses: tuple = ()
+    tendons: tuple = ()
+    gravity_direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
+    base_rotation: tuple = struct.field(
+        pytree_node=False, default=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    )
+    prescribed: tuple = struct.field(pytree_node=False, default=())
+
+    @property
+    def n_dofs(self) -> int:
+        return sum(link.n_dofs for link in self.links)
+
+    def dof_slices(self) -> list[tuple[int, int, int]]:
+        """Per link: (first joint DoF, first soft DoF, end) indices into q."""
+        out, i = [], 0
+        for link in self.links:
+            nj = link.joint.n_dofs
+            ns = link.basis.n_dofs if isinstance(link, SoftLink) else 0
+            out.append((i, i + nj, i + nj + ns))
+            i += nj + ns
+        return out
+
+    @property
+    def free(self) -> tuple[int, ...]:
+        return tuple(i for i in range(self.n_dofs) if i not in self.prescribed)

@@ -1,0 +1,92 @@
+"""Ready-made robots. ``paper_arm`` is the 1 m soft arm of Armanini et al."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from gvsjax.model import Joint, Material, PointLoad, PointMass, Robot, SoftLink, StrainBasis, Tendon
+from gvsjax.validation import check_robot, finite, nonnegative, positive, require
+
+# At joint angle 0 the rod's local x axis points along world -y (hanging).
+HANGING = ((0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+
+PAPER_ARM = dict(
+    length=1.0,  # m
+    radius=0.05,  # m, circular section
+    youngs_modulus=5e6,  # Pa
+    density=1000.0,  # kg/m^3
+    damping=1e5,  # Pa s, SoRoSim material damping eta (bending uses 3*eta*I)
+    poisson=0.5,  # SoRoSim default: G = E/3
+    gravity=9.81,  # m/s^2, along world -y
+    n_modes=2,  # polynomial terms of the bending curvature (2 = the paper's linear basis)
+    n_gauss=5,  # Gauss points along the arm (SoRoSim default)
+    basis="monomial",  # or "legendre" (better conditioned for many modes)
+    tip_force=0.0,  # N, constant force on the tip along world -y
+    tip_mass=0.0,  # kg, inertial point mass at the tip (also weighed by gravity)
+    tendon_offset=None,  # m, straight tendon at this offset (local +y); None = no tendon
+)
+
+
+def paper_arm(**overrides: Any) -> Robot:
+    """The paper's planar arm: a revolute base (prescribed) and a soft link
+    bending about z with ``n_modes`` polynomial curvature terms.
+
+    q = (theta, q_1, ..., q_n_modes); theta = 0 hangs the arm along -y, theta =
+    pi/2 points it along +x. Curvature kappa(s) = sum_k q_k (s/L)^k / L.
+    Keyword overrides (SI units): see ``PAPER_ARM``.
+    """
+    unknown = sorted(set(overrides) - set(PAPER_ARM))
+    if unknown:
+        raise ValueError(f"paper_arm got unknown parameter(s) {unknown}; valid: {sorted(PAPER_ARM)}")
+    p = {**PAPER_ARM, **overrides}
+    for key in ("length", "radius", "youngs_modulus", "density"):
+        positive(key, p[key])
+    for key in ("damping", "gravity", "tip_mass"):
+        nonnegative(key, p[key])
+    finite("tip_force", p["tip_force"])
+    for key in ("n_modes", "n_gauss"):
+        require(isinstance(p[key], int) and not isinstance(p[key], bool) and p[key] >= 1, key, p[key], "an int >= 1")
+    require(p["n_gauss"] >= p["n_modes"], "n_gauss", p["n_gauss"],
+            f">= n_modes={p['n_modes']} so that the stiffness is integrated exactly")
+    require(p["basis"] in ("monomial", "legendre"), "basis", p["basis"], "'monomial' or 'legendre'")
+    tendons = ()
+    if p["tendon_offset"] is not None:
+        finite("tendon_offset", p["tendon_offset"])
+        tendons = (Tendon(offset=p["tendon_offset"], link=0, direction=(1.0, 0.0)),)
+    link = SoftLink(
+        length=p["length"],
+        radius=p["radius"],
+        material=Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"]),
+        basis=StrainBasis(orders=(-1, -1, p["n_modes"] - 1, -1, -1, -1), kind=p["basis"]),
+        joint=Joint("revolute", (0.0, 0.0, 1.0)),
+        n_gauss=p["n_gauss"],
+    )
+    robot = Robot(
+        links=(link,),
+        gravity=p["gravity"],
+        loads=(PointLoad(magnitude=p["tip_force"], link=0, X=1.0, direction=(0.0, -1.0, 0.0)),),
+        masses=(PointMass(mass=p["tip_mass"], link=0, X=1.0),),
+        tendons=tendons,
+        base_rotation=HANGING,
+        prescribed=(0,),
+    )
+    check_robot(robot)
+    return robot
+
+
+def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=1e5, poisson=0.5,
+           order=1, n_gauss=5, basis="legendre", gravity=0.0) -> Robot:
+    """A straight rod clamped at the origin along +x with all six strains active."""
+    link = SoftLink(
+        length=length, radius=radius,
+        material=Material(youngs_modulus, density, damping, poisson),
+        basis=StrainBasis(orders=(order,) * 6, kind=basis),
+        joint=Joint("fixed"), n_gauss=n_gauss,
+    )
+    robot = Robot(links=(link,), gravity=gravity)
+    check_robot(robot)
+    return robot
+
+
+__all__ = ["paper_arm", "rod_3d", "PAPER_ARM", "HANGING"]

@@ -1,0 +1,89 @@
+"""Input checks that fail early with a message naming the parameter."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import jax
+import numpy as np
+
+
+def concrete(x: Any) -> bool:
+    """True when x holds actual numbers (not a JAX tracer) at every leaf."""
+    return not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(x))
+
+
+def require(ok: bool, name: str, value: Any, allowed: str) -> None:
+    """Raise ``ValueError('<name>=<value> is invalid: expected <allowed>')`` unless ok."""
+    if not ok:
+        shown = value if not isinstance(value, np.ndarray) else np.array2string(value, threshold=8)
+        raise ValueError(f"{name}={shown!r} is invalid: expected {allowed}")
+
+
+def positive(name: str, value: Any) -> None:
+    if concrete(value):
+        v = np.asarray(value, dtype=float)
+        require(bool(np.all(np.isfinite(v)) and np.all(v > 0)), name, value, "a finite number > 0")
+
+
+def nonnegative(name: str, value: Any) -> None:
+    if concrete(value):
+        v = np.asarray(value, dtype=float)
+        require(bool(np.all(np.isfinite(v)) and np.all(v >= 0)), name, value, "a finite number >= 0")
+
+
+def finite(name: str, value: Any) -> None:
+    if concrete(value):
+        v = np.asarray(value, dtype=float)
+        require(bool(np.all(np.isfinite(v))), name, value, "a finite number")
+
+
+def check_robot(robot) -> None:
+    """Physical sanity of every link, load, mass and tendon (concrete leaves only)."""
+    from gvsjax.model import RigidLink, SoftLink
+
+    require(len(robot.links) >= 1, "links", robot.links, "at least one link")
+    nonnegative("gravity", robot.gravity)
+    for i, link in enumerate(robot.links):
+        if isinstance(link, SoftLink):
+            positive(f"links[{i}].length", link.length)
+            positive(f"links[{i}].radius", link.radius)
+            positive(f"links[{i}].material.youngs_modulus", link.material.youngs_modulus)
+            positive(f"links[{i}].material.density", link.material.density)
+            nonnegative(f"links[{i}].material.damping", link.material.damping)
+            if concrete(link.material.poisson):
+                nu = float(link.material.poisson)
+                require(-1.0 < nu <= 0.5, f"links[{i}].material.poisson", nu, "a ratio in (-1, 0.5]")
+            require(isinstance(link.n_gauss, int) and link.n_gauss >= 1, f"links[{i}].n_gauss",
+                    link.n_gauss, "an int >= 1")
+            top = max(link.basis.orders)
+            require(link.n_gauss >= top + 1, f"links[{i}].n_gauss", link.n_gauss,
+                    f">= {top + 1} (highest basis order + 1), else K is under-integrated")
+        elif isinstance(link, RigidLink):
+            positive(f"links[{i}].mass", link.mass)
+            positive(f"links[{i}].inertia", np.asarray(link.inertia) if concrete(link.inertia) else link.inertia)
+            nonnegative(f"links[{i}].length", link.length)
+        else:
+            raise ValueError(f"links[{i}]={type(link).__name__} is invalid: expected SoftLink or RigidLink")
+    n = len(robot.links)
+    for k, load in enumerate(robot.loads):
+        finite(f"loads[{k}].magnitude", load.magnitude)
+        require(-n <= load.link < n, f"loads[{k}].link", load.link, f"a link index in [-{n}, {n})")
+        require(0.0 <= load.X <= 1.0, f"loads[{k}].X", load.X, "a material coordinate in [0, 1]")
+    for k, pm in enumerate(robot.masses):
+        nonnegative(f"masses[{k}].mass", pm.mass)
+        require(-n <= pm.link < n, f"masses[{k}].link", pm.link, f"a link index in [-{n}, {n})")
+        require(0.0 <= pm.X <= 1.0, f"masses[{k}].X", pm.X, "a material coordinate in [0, 1]")
+    for k, td in enumerate(robot.tendons):
+        require(-n <= td.link < n and isinstance(robot.links[td.link], SoftLink), f"tendons[{k}].link",
+                td.link, "the index of a soft link")
+        finite(f"tendons[{k}].offset", td.offset)
+        link = robot.links[td.link]
+        if concrete(td.offset) and concrete(link.radius):
+            require(abs(float(td.offset)) <= float(link.radius), f"tendons[{k}].offset", td.offset,
+                    f"|offset| <= the link radius {float(link.radius)} m (the tendon runs inside the rod)")
+        require(math.isclose(math.hypot(*td.direction), 1.0, rel_tol=1e-9), f"tendons[{k}].direction",
+                td.direction, "a unit 2-vector in the section's (y, z) plane")
+    for i in robot.prescribed:
+        require(0 <= i < robot.n_dofs, "prescribed", robot.prescribed, f"DoF indices in [0, {robot.n_dofs})")
