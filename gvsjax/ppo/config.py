@@ -1,0 +1,230 @@
+"""Typed, validated PPO hyperparameters.
+
+``PPOConfig`` is a frozen dataclass; every field carries a one-line help text
+(``FIELD_DOCS``) so a command line can expose it as a ``key=value`` override.
+Construction validates every field and raises a ``ValueError`` naming the
+field, the offending value and the allowed range.
+
+Defaults: the paper's two-phase schedule (phase 1: lr 1e-4, clip 0.1; phase 2,
+"fine-tuning": lr 1e-5, clip 0.02) on top of otherwise modern PPO settings
+(PureJaxRL/CleanRL: advantage normalisation, grad-norm clipping, orthogonal
+init, state-independent log-std). ``MATLAB_LIKE`` lists the overrides that
+approximate MATLAB's ``rlPPOAgent`` (see /work/shared/design/rl-notes.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+
+def _f(default: Any, help: str) -> Any:
+    return field(default=default, metadata={"help": help})
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters. See ``FIELD_DOCS`` (or each field's metadata) for meanings."""
+
+    seed: int = _f(0, "PRNG seed for network init, rollouts and minibatch shuffling")
+    num_envs: int = _f(64, "parallel environments per rollout")
+    num_steps: int = _f(4, "env steps per environment per update (rollout length)")
+    total_episodes: int = _f(100_000, "training budget in episodes; sets the number of updates")
+    update_epochs: int = _f(4, "passes over each rollout batch per update")
+    num_minibatches: int = _f(4, "minibatches per epoch; must divide num_envs*num_steps")
+    gamma: float = _f(0.99, "discount factor")
+    gae_lambda: float = _f(0.95, "GAE lambda")
+    clip_eps: float = _f(0.1, "PPO ratio clip in phase 1 (paper: 0.1)")
+    clip_value_loss: bool = _f(False, "clip the value update to +-clip_eps around the old value")
+    vf_coef: float = _f(0.5, "value-loss coefficient")
+    ent_coef: float = _f(0.01, "entropy-bonus coefficient")
+    max_grad_norm: float = _f(0.5, "global gradient-norm clip (inf disables)")
+    l2_coef: float = _f(0.0, "L2 regularisation added to gradients (MATLAB default 1e-4)")
+    learning_rate: float = _f(1e-4, "Adam learning rate in phase 1 (paper: 1e-4)")
+    anneal_lr: bool = _f(False, "scale the phase's lr by 1 - update/num_updates")
+    normalize_advantages: bool = _f(True, "normalise advantages per minibatch")
+    network: str = _f("shared", "actor-critic layout: 'shared' trunk or 'separate' MLPs")
+    shared_hidden: tuple[int, ...] = _f((128, 32, 16), "hidden sizes of the shared trunk")
+    actor_hidden: tuple[int, ...] = _f((128, 32), "hidden sizes of the separate actor")
+    critic_hidden: tuple[int, ...] = _f((128, 32), "hidden sizes of the separate critic")
+    activation: str = _f("relu", "hidden activation: 'relu' or 'tanh'")
+    std_mode: str = _f("learned", "'learned' state-independent log-std or 'network' head (MATLAB)")
+    init_log_std: float = _f(-0.5, "initial log standard deviation of the Gaussian policy")
+    min_log_std: float = _f(-5.0, "floor on the log standard deviation")
+    finetune_fraction: float = _f(0.2, "fraction of total_episodes spent in phase 2 (fine-tuning)")
+    finetune_learning_rate: float = _f(1e-5, "Adam learning rate in phase 2 (paper: 1e-5)")
+    finetune_clip_eps: float = _f(0.02, "PPO ratio clip in phase 2 (paper: 0.02)")
+
+    def __post_init__(self) -> None:
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):
+            value = _coerce(f.name, hints[f.name], getattr(self, f.name))
+            object.__setattr__(self, f.name, value)
+        for name, (ok, allowed) in _CHECKS.items():
+            value = getattr(self, name)
+            if not ok(value):
+                raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+        batch = self.num_envs * self.num_steps
+        if batch % self.num_minibatches:
+            raise ValueError(
+                f"num_minibatches={self.num_minibatches} is invalid; it must divide "
+                f"num_envs*num_steps={batch}"
+            )
+        if self.init_log_std < self.min_log_std:
+            raise ValueError(
+                f"init_log_std={self.init_log_std!r} is invalid; it must be >= "
+                f"min_log_std={self.min_log_std!r}"
+            )
+
+    def replace(self, **overrides: Any) -> PPOConfig:
+        """A copy with ``overrides`` applied and validated."""
+        unknown = sorted(set(overrides) - set(FIELD_DOCS))
+        if unknown:
+            raise ValueError(f"unknown PPOConfig key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
+        return dataclasses.replace(self, **overrides)
+
+
+FIELD_DOCS: dict[str, str] = {f.name: f.metadata["help"] for f in dataclasses.fields(PPOConfig)}
+
+# Overrides approximating MATLAB rlPPOAgentOptions as used by the paper (some
+# values only believed, see rl-notes.md); use as ``PPOConfig().replace(**MATLAB_LIKE)``.
+MATLAB_LIKE: dict[str, Any] = dict(
+    update_epochs=3,
+    normalize_advantages=False,
+    max_grad_norm=math.inf,
+    l2_coef=1e-4,
+    std_mode="network",
+    network="separate",
+)
+
+
+def _positive_int(v: Any) -> bool:
+    return isinstance(v, int) and v >= 1
+
+
+def _sizes(v: Any) -> bool:
+    return len(v) >= 1 and all(isinstance(h, int) and h >= 1 for h in v)
+
+
+def _finite(v: float) -> bool:
+    return math.isfinite(v)
+
+
+_CHECKS: dict[str, tuple[Any, str]] = {
+    "seed": (lambda v: v >= 0, "integer >= 0"),
+    "num_envs": (_positive_int, "integer >= 1"),
+    "num_steps": (_positive_int, "integer >= 1"),
+    "total_episodes": (_positive_int, "integer >= 1"),
+    "update_epochs": (_positive_int, "integer >= 1"),
+    "num_minibatches": (_positive_int, "integer >= 1"),
+    "gamma": (lambda v: 0.0 <= v <= 1.0, "0 <= gamma <= 1"),
+    "gae_lambda": (lambda v: 0.0 <= v <= 1.0, "0 <= gae_lambda <= 1"),
+    "clip_eps": (lambda v: _finite(v) and v > 0, "finite float > 0"),
+    "vf_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
+    "ent_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
+    "max_grad_norm": (lambda v: v > 0, "float > 0 (inf disables clipping)"),
+    "l2_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
+    "learning_rate": (lambda v: _finite(v) and v > 0, "finite float > 0"),
+    "network": (lambda v: v in ("shared", "separate"), "'shared' or 'separate'"),
+    "shared_hidden": (_sizes, "non-empty comma-separated positive integers, e.g. 128,32,16"),
+    "actor_hidden": (_sizes, "non-empty comma-separated positive integers, e.g. 128,32"),
+    "critic_hidden": (_sizes, "non-empty comma-separated positive integers, e.g. 128,32"),
+    "activation": (lambda v: v in ("relu", "tanh"), "'relu' or 'tanh'"),
+    "std_mode": (lambda v: v in ("learned", "network"), "'learned' or 'network'"),
+    "init_log_std": (_finite, "finite float"),
+    "min_log_std": (_finite, "finite float"),
+    "finetune_fraction": (lambda v: 0.0 <= v <= 1.0, "0 <= finetune_fraction <= 1"),
+    "finetune_learning_rate": (lambda v: _finite(v) and v > 0, "finite float > 0"),
+    "finetune_clip_eps": (lambda v: _finite(v) and v > 0, "finite float > 0"),
+}
+
+
+def _coerce(name: str, typ: Any, value: Any) -> Any:
+    """Check ``value`` has the field's type; widen int->float and list->tuple."""
+    bad = ValueError(f"{name}={value!r} is invalid; expected type {_type_name(typ)}")
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise bad
+    elif typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad
+    elif typ is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise bad
+        value = float(value)
+    elif typ is str:
+        if not isinstance(value, str):
+            raise bad
+    else:  # tuple[int, ...]
+        if not isinstance(value, (tuple, list)):
+            raise bad
+        value = tuple(value)
+    return value
+
+
+def _type_name(typ: Any) -> str:
+    return getattr(typ, "__name__", None) if typ in (bool, int, float, str) else "tuple of int"
+
+
+def parse_value(name: str, text: str) -> Any:
+    """Parse the string ``text`` to the type of field ``name`` (no range checks)."""
+    typ = typing.get_type_hints(PPOConfig)[name]
+    text = text.strip()
+    try:
+        if typ is bool:
+            lowered = text.lower()
+            if lowered in ("1", "true", "yes", "on"):
+                return True
+            if lowered in ("0", "false", "no", "off"):
+                return False
+            raise ValueError
+        if typ is int:
+            return _parse_int(text)
+        if typ is float:
+            return float(text)
+        if typ is str:
+            return text
+        return tuple(_parse_int(t) for t in text.strip("()[]").split(",") if t.strip())
+    except ValueError:
+        raise ValueError(
+            f"{name}={text!r} is invalid; expected {_type_name(typ)}"
+            + (" (e.g. 128,32,16)" if typ not in (bool, int, float, str) else "")
+        ) from None
+
+
+def _parse_int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        as_float = float(text)  # accept "1e5"
+        if not as_float.is_integer():
+            raise
+        return int(as_float)
+
+
+def from_overrides(base: PPOConfig, overrides: Iterable[str]) -> PPOConfig:
+    """``base`` with ``["key=value", ...]`` applied, e.g. ``["num_envs=32", "shared_hidden=64,16"]``."""
+    parsed: dict[str, Any] = {}
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep:
+            raise ValueError(f"override {item!r} is not of the form key=value")
+        if key not in FIELD_DOCS:
+            raise ValueError(f"unknown PPOConfig key {key!r}; valid keys: {sorted(FIELD_DOCS)}")
+        parsed[key] = parse_value(key, text)
+    return base.replace(**parsed)
+
+
+def describe(config: PPOConfig | None = None) -> str:
+    """One line per field, ``key=value  help``, for a command line's ``--help``."""
+    config = config or PPOConfig()
+    lines = []
+    for name, doc in FIELD_DOCS.items():
+        value = getattr(config, name)
+        shown = ",".join(map(str, value)) if isinstance(value, tuple) else value
+        lines.append(f"  {name}={shown}".ljust(34) + f"  {doc}")
+    return "\n".join(lines)
