@@ -83,7 +83,9 @@ class PPOConfig:
         """A copy with ``overrides`` applied and validated."""
         unknown = sorted(set(overrides) - set(FIELD_DOCS))
         if unknown:
-            raise ValueError(f"unknown PPOConfig key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
+            raise ValueError(
+                f"unknown PPOConfig key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}"
+            )
         return dataclasses.replace(self, **overrides)
 
 
@@ -206,7 +208,10 @@ def _parse_int(text: str) -> int:
 
 
 def from_overrides(base: PPOConfig, overrides: Iterable[str]) -> PPOConfig:
-    """``base`` with ``["key=value", ...]`` applied, e.g. ``["num_envs=32", "shared_hidden=64,16"]``."""
+    """``base`` with ``["key=value", ...]`` applied and validated.
+
+    Example: ``from_overrides(PPOConfig(), ["num_envs=32", "shared_hidden=64,16"])``.
+    """
     parsed: dict[str, Any] = {}
     for item in overrides:
         key, sep, text = item.partition("=")

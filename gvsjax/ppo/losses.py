@@ -128,12 +128,13 @@ def ppo_loss(
 
     entropy = weighted_mean(gaussian_entropy(log_std), weight)
     loss = policy_loss + vf_coef * value_loss - ent_coef * entropy
+    outside_clip = (jnp.abs(ratio - 1.0) > clip_eps).astype(ratio.dtype)
     metrics = {
         "loss": loss,
         "policy_loss": policy_loss,
         "value_loss": value_loss,
         "entropy": entropy,
         "approx_kl": weighted_mean((ratio - 1.0) - log_ratio, weight),
-        "clip_fraction": weighted_mean((jnp.abs(ratio - 1.0) > clip_eps).astype(ratio.dtype), weight),
+        "clip_fraction": weighted_mean(outside_clip, weight),
     }
     return loss, metrics
