@@ -1,0 +1,27 @@
+"""PPO for gvsjax tasks: ``config`` (hyperparameters), ``networks`` (actor-critics),
+``losses`` (GAE and the clipped objective), ``train`` (pure, jittable training)."""
+
+from gvsjax.ppo.config import FIELD_DOCS, MATLAB_LIKE, PPOConfig, describe, from_overrides
+from gvsjax.ppo.losses import Batch, gae, gaussian_entropy, gaussian_log_prob, ppo_loss
+from gvsjax.ppo.networks import SeparateActorCritic, SharedActorCritic, make_network
+from gvsjax.ppo.train import (
+    TrainState,
+    Trajectory,
+    collect,
+    finetune_start,
+    init,
+    make_train,
+    make_update,
+    num_updates,
+    phase_hyperparams,
+    policy_action,
+    update,
+)
+
+__all__ = [
+    "FIELD_DOCS", "MATLAB_LIKE", "PPOConfig", "describe", "from_overrides",
+    "Batch", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
+    "SeparateActorCritic", "SharedActorCritic", "make_network",
+    "TrainState", "Trajectory", "collect", "finetune_start", "init", "make_train",
+    "make_update", "num_updates", "phase_hyperparams", "policy_action", "update",
+]

@@ -1,0 +1,344 @@
+"""PPO training as flat pure functions over explicit state pytrees.
+
+    state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
+    state, metrics = update(config, env, env_params, state)   # one PPO update
+    run = make_update(config, env, env_params, updates_per_call=K)
+    state, metrics = run(state)                              # K updates, one jit call
+    state, metrics = make_train(config, env, env_params)(key)  # whole run, vmappable
+
+Budget: one update collects ``num_envs * num_steps`` env steps, i.e.
+``num_envs * num_steps / episode_length`` episodes, so
+``num_updates = ceil(total_episodes * episode_length / (num_envs * num_steps))``.
+The last ``round(finetune_fraction * num_updates)`` updates are phase 2
+(fine-tuning). Learning rate and clip are *traced* functions of the update
+index, so the phase switch never recompiles.
+
+Numerics are float32 (observations and rewards are cast), whatever the
+physics uses.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from gvsjax.ppo.config import PPOConfig
+from gvsjax.ppo.losses import Batch, gae, gaussian_log_prob, ppo_loss
+from gvsjax.ppo.networks import make_network
+from gvsjax.tasks.base import auto_reset_step
+
+PyTree = Any
+
+
+@struct.dataclass
+class TrainState:
+    """Everything that changes during training (a pytree; save it to resume)."""
+
+    params: PyTree
+    opt_state: optax.OptState
+    env_state: PyTree  # batched over num_envs
+    last_obs: jax.Array  # (N, obs_size) float32
+    key: jax.Array
+    update: jax.Array  # int32, number of updates done
+    episodes: jax.Array  # int32, episodes finished (diverged ones included)
+    episode_return: jax.Array  # (N,) float32, return so far of each running episode
+
+
+@struct.dataclass
+class Trajectory:
+    """A rollout, time-major ``(T, N, ...)``."""
+
+    obs: jax.Array  # (T, N, obs_size) observation the action was taken from
+    action: jax.Array  # (T, N, A) unclipped sample
+    log_prob: jax.Array  # (T, N)
+    value: jax.Array  # (T, N)
+    reward: jax.Array  # (T, N), 0 where invalid
+    done: jax.Array  # (T, N) bool, episode ended (True also where invalid)
+    valid: jax.Array  # (T, N) bool, physics did not diverge
+    episode_return: jax.Array  # (T, N) return of the episode ending here, else 0
+    info: dict[str, jax.Array]  # float (T, N) entries of the env's info
+
+
+def num_updates(config: PPOConfig, episode_length: int) -> int:
+    """Updates needed to spend ``total_episodes`` (rounded up)."""
+    steps_per_update = config.num_envs * config.num_steps
+    return max(1, math.ceil(config.total_episodes * episode_length / steps_per_update))
+
+
+def finetune_start(config: PPOConfig, episode_length: int) -> int:
+    """Index of the first phase-2 update (== num_updates when there is no phase 2)."""
+    n = num_updates(config, episode_length)
+    return n - round(config.finetune_fraction * n)
+
+
+def phase_hyperparams(
+    config: PPOConfig, episode_length: int, update: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Traced ``(learning_rate, clip_eps)`` for update index ``update``.
+
+    Phase 1 uses ``learning_rate``/``clip_eps``, phase 2 the ``finetune_``
+    values; with ``anneal_lr`` the phase's rate is scaled by
+    ``1 - update / num_updates`` (linear to 0 over the whole run).
+    """
+    finetune = update >= finetune_start(config, episode_length)
+    lr = jnp.where(finetune, config.finetune_learning_rate, config.learning_rate)
+    if config.anneal_lr:
+        lr = lr * (1.0 - update / num_updates(config, episode_length))
+    clip_eps = jnp.where(finetune, config.finetune_clip_eps, config.clip_eps)
+    return lr.astype(jnp.float32), clip_eps.astype(jnp.float32)
+
+
+def make_optimizer(config: PPOConfig) -> optax.GradientTransformation:
+    """Global-norm clip, optional L2, Adam; the learning rate is an injected hyperparameter."""
+
+    def chain(learning_rate):
+        parts = [optax.clip_by_global_norm(config.max_grad_norm)]
+        if config.l2_coef:
+            parts.append(optax.add_decayed_weights(config.l2_coef))
+        parts.append(optax.adam(learning_rate, eps=1e-5))
+        return optax.chain(*parts)
+
+    return optax.inject_hyperparams(chain, hyperparam_dtype=jnp.float32)(
+        learning_rate=config.learning_rate
+    )
+
+
+def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainState:
+    """Fresh network, optimizer and ``num_envs`` freshly reset environments."""
+    key, key_net, key_reset = jax.random.split(key, 3)
+    network = make_network(config, env.action_size)
+    params = network.init(key_net, jnp.zeros((env.obs_size,), jnp.float32))
+    obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(
+        jax.random.split(key_reset, config.num_envs), env_params
+    )
+    return TrainState(
+        params=params,
+        opt_state=make_optimizer(config).init(params),
+        env_state=env_state,
+        last_obs=obs.astype(jnp.float32),
+        key=key,
+        update=jnp.zeros((), jnp.int32),
+        episodes=jnp.zeros((), jnp.int32),
+        episode_return=jnp.zeros((config.num_envs,), jnp.float32),
+    )
+
+
+def collect(
+    config: PPOConfig, env, env_params: PyTree, state: TrainState
+) -> tuple[TrainState, Trajectory]:
+    """Roll the stochastic policy for ``num_steps`` steps in every env (auto-reset).
+
+    A step with ``info["valid"] == False`` is treated as terminal with reward 0
+    (the raw reward may be NaN) and is masked out of the loss downstream. The
+    env must itself report ``done`` on such a step (base.py's contract) so that
+    ``auto_reset_step`` replaces the diverged state.
+    """
+    apply_fn = make_network(config, env.action_size).apply
+    env_step = jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None))
+    n = config.num_envs
+
+    def one_step(carry, keys):  # keys: (n + 1,) = action key, one key per env
+        env_state, obs, episode_return = carry
+        mean, log_std, value = apply_fn(state.params, obs)
+        action = mean + jnp.exp(log_std) * jax.random.normal(keys[0], mean.shape, mean.dtype)
+        next_obs, env_state, reward, done, info = env_step(keys[1:], env_state, action, env_params)
+        valid = jnp.asarray(info.get("valid", jnp.ones((n,), bool)), bool)
+        done = jnp.asarray(done, bool) | ~valid
+        reward = jnp.where(valid, reward, 0.0).astype(jnp.float32)
+        episode_return = episode_return + reward
+        floats = {
+            k: v.astype(jnp.float32)
+            for k, v in info.items()
+            if jnp.issubdtype(v.dtype, jnp.floating) and v.shape == (n,)
+        }
+        step = Trajectory(
+            obs=obs,
+            action=action,
+            log_prob=gaussian_log_prob(mean, log_std, action),
+            value=value,
+            reward=reward,
+            done=done,
+            valid=valid,
+            episode_return=jnp.where(done, episode_return, 0.0),
+            info=floats,
+        )
+        carry = (env_state, next_obs.astype(jnp.float32), jnp.where(done, 0.0, episode_return))
+        return carry, step
+
+    key, key_steps = jax.random.split(state.key)
+    (env_state, obs, episode_return), trajectory = jax.lax.scan(
+        one_step,
+        (state.env_state, state.last_obs, state.episode_return),
+        # all keys split up front: each random call inside the scan costs compile time
+        jax.random.split(key_steps, (config.num_steps, n + 1)),
+    )
+    state = state.replace(
+        env_state=env_state,
+        last_obs=obs,
+        key=key,
+        episode_return=episode_return,
+        episodes=state.episodes + jnp.sum(trajectory.done, dtype=jnp.int32),
+    )
+    return state, trajectory
+
+
+def episode_metrics(trajectory: Trajectory) -> dict[str, jax.Array]:
+    """Means over episodes that *completed validly* in this rollout (NaN if none).
+
+    ``episode_reward`` is the undiscounted return; ``episode_<k>`` is scalar
+    float info entry ``k`` at the episode's last step (e.g. ``episode_cost``;
+    an info entry named ``reward`` would be shadowed by the return).
+    ``episodes_completed`` counts those episodes, ``invalid_steps`` the
+    diverged steps (each also ended an episode).
+    """
+    completed = trajectory.done & trajectory.valid
+    count = jnp.sum(completed)
+
+    def mean_over_completed(x):
+        total = jnp.sum(jnp.where(completed, x, 0.0))
+        return jnp.where(count > 0, total / jnp.maximum(count, 1), jnp.nan)
+
+    metrics = {f"episode_{k}": mean_over_completed(v) for k, v in trajectory.info.items()}
+    metrics["episode_reward"] = mean_over_completed(trajectory.episode_return)
+    metrics["episodes_completed"] = count.astype(jnp.int32)
+    metrics["invalid_steps"] = jnp.sum(~trajectory.valid, dtype=jnp.int32)
+    return metrics
+
+
+def update(
+    config: PPOConfig, env, env_params: PyTree, state: TrainState
+) -> tuple[TrainState, dict[str, jax.Array]]:
+    """One PPO update: collect, GAE, ``update_epochs`` x ``num_minibatches`` Adam steps.
+
+    Returns scalar metrics: loss terms, ``approx_kl``, ``clip_fraction``,
+    ``grad_norm`` (means over all minibatch steps), episode metrics of the
+    rollout (see ``episode_metrics``), ``learning_rate``, ``clip_eps``,
+    ``update`` (index of this update) and ``episodes`` (total so far).
+    """
+    apply_fn = make_network(config, env.action_size).apply
+    optimizer = make_optimizer(config)
+    lr, clip_eps = phase_hyperparams(config, env.episode_length, state.update)
+
+    index = state.update
+    state, trajectory = collect(config, env, env_params, state)
+    _, _, last_value = apply_fn(state.params, state.last_obs)
+    advantage, target = gae(
+        trajectory.reward, trajectory.value, trajectory.done, last_value,
+        config.gamma, config.gae_lambda,
+    )
+    flat = lambda x: x.reshape((-1,) + x.shape[2:])  # (T, N, ...) -> (T*N, ...)
+    batch = Batch(
+        obs=flat(trajectory.obs),
+        action=flat(trajectory.action),
+        log_prob=flat(trajectory.log_prob),
+        value=flat(trajectory.value),
+        advantage=flat(advantage),
+        target=flat(target),
+        weight=flat(trajectory.valid).astype(jnp.float32),
+    )
+    size = batch.weight.shape[0]
+
+    def minibatch_step(carry, minibatch):
+        params, opt_state = carry
+        grads, metrics = jax.grad(ppo_loss, has_aux=True)(
+            params, apply_fn, minibatch, clip_eps, config.vf_coef, config.ent_coef,
+            config.normalize_advantages, config.clip_value_loss,
+        )
+        updates, opt_state = optimizer.update(grads, opt_state, params)
+        metrics["grad_norm"] = optax.tree.norm(grads)
+        return (optax.apply_updates(params, updates), opt_state), metrics
+
+    def epoch(carry, key):
+        order = jax.random.permutation(key, size)
+        minibatches = jax.tree.map(
+            lambda x: x[order].reshape((config.num_minibatches, -1) + x.shape[1:]), batch
+        )
+        return jax.lax.scan(minibatch_step, carry, minibatches)
+
+    opt_state = state.opt_state
+    opt_state = opt_state._replace(hyperparams={**opt_state.hyperparams, "learning_rate": lr})
+    key, key_epochs = jax.random.split(state.key)
+    (params, opt_state), loss_metrics = jax.lax.scan(
+        epoch, (state.params, opt_state), jax.random.split(key_epochs, config.update_epochs)
+    )
+    state = state.replace(params=params, opt_state=opt_state, key=key, update=index + 1)
+    metrics = {k: jnp.mean(v) for k, v in loss_metrics.items()}
+    metrics.update(episode_metrics(trajectory))
+    metrics.update(
+        learning_rate=lr, clip_eps=clip_eps, update=index, episodes=state.episodes
+    )
+    return state, metrics
+
+
+def make_update(
+    config: PPOConfig, env, env_params: PyTree, updates_per_call: int = 1
+) -> Callable[[TrainState], tuple[TrainState, dict[str, jax.Array]]]:
+    """A jitted ``state -> (state, metrics)`` running ``updates_per_call`` updates in one scan.
+
+    Metrics are stacked with leading axis ``updates_per_call``. Updates past
+    ``num_updates`` are skipped (state unchanged; their metrics are NaN for
+    floats and -1 for integers), so the caller may call it
+    ``ceil(num_updates / updates_per_call)`` times without overshooting.
+    """
+    total = num_updates(config, env.episode_length)
+    one = lambda s: update(config, env, env_params, s)
+
+    def skipped(s):
+        shapes = jax.eval_shape(one, s)[1]
+        fill = lambda x: jnp.full(
+            x.shape, jnp.nan if jnp.issubdtype(x.dtype, jnp.floating) else -1, x.dtype
+        )
+        return s, jax.tree.map(fill, shapes)
+
+    def body(s, _):
+        return jax.lax.cond(s.update < total, one, skipped, s)
+
+    @jax.jit
+    def run(state):
+        return jax.lax.scan(body, state, None, length=updates_per_call)
+
+    return run
+
+
+def make_train(
+    config: PPOConfig, env, env_params: PyTree
+) -> Callable[[jax.Array], tuple[TrainState, dict[str, jax.Array]]]:
+    """A jitted pure ``train(key) -> (final_state, metrics)`` doing the whole run.
+
+    Metrics are stacked over ``num_updates``. ``jax.vmap(train)(keys)`` trains
+    one agent per key in parallel. ``config.seed`` is not read here: callers
+    pass ``jax.random.PRNGKey(config.seed)``.
+    """
+    total = num_updates(config, env.episode_length)
+
+    @jax.jit
+    def train(key):
+        state = init(config, env, env_params, key)
+        return jax.lax.scan(
+            lambda s, _: update(config, env, env_params, s), state, None, length=total
+        )
+
+    return train
+
+
+def policy_action(
+    params: PyTree,
+    apply_fn: Callable,
+    obs: jax.Array,
+    deterministic: bool = True,
+    key: jax.Array | None = None,
+) -> jax.Array:
+    """Action in [-1, 1] for ``obs`` ``(..., obs_size)``: the clipped mean, or a clipped sample.
+
+    ``apply_fn`` is ``make_network(config, env.action_size).apply``; ``key`` is
+    required when ``deterministic`` is False.
+    """
+    mean, log_std, _ = apply_fn(params, obs)
+    if not deterministic:
+        mean = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape, mean.dtype)
+    return jnp.clip(mean, -1.0, 1.0)
