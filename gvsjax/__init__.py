@@ -5,7 +5,17 @@
     traj = gv.simulate(arm, 1.0, 2e-3, base_angle=lambda t: 3.665 * (t / 2.0) ** 2)
 """
 
-import jax
+import os
+
+# XLA's newer CPU fusion emitter recomputes shared subexpressions of the long
+# scalar chains the GVS recursion produces (measured: 40x slower per step and
+# minutes of compile). The classic emitter handles them well. The flag must be
+# set before JAX creates its CPU backend, so import gvsjax before using JAX.
+_FLAG = "--xla_cpu_use_fusion_emitters=false"
+if _FLAG.split("=")[0] not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + _FLAG).strip()
+
+import jax  # noqa: E402
 
 # All physics runs in float64 (gvs-notes 1.4): the throw's release state is
 # sensitive at the 1e-6 level and the Magnus coefficients lose digits in fp32.

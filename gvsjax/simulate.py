@@ -68,13 +68,13 @@ class FreeDynamics:
         return [T[i] for i in range(len(self.robot.tendons))]
 
     def _mf(self, t, q_u, qd_u):
-        q, qd, qdda = self._full(t, [q_u[i] for i in range(len(self.u))], [qd_u[i] for i in range(len(self.u))])
+        q, qd, qdda = self._full(t, q_u, qd_u)
         M, F = dynamics.mass_and_forces(self.robot, q, qd, self._tension(t))
         return q, qd, qdda, M, F
 
     def accel(self, t, q_u, qd_u):
         _, _, qdda, M, F = self._mf(t, q_u, qd_u)
-        return jnp.stack([lie.as_array(x) for x in dynamics.split_solve(self.robot, M, F, qdda)])
+        return tuple(lie.as_array(x) for x in dynamics.split_solve(self.robot, M, F, qdda))
 
     def parts(self, t, q_u, qd_u):
         """M_uu (lower triangle), f_u = F_u - M_ua qdd_a, K_uu, D_uu for IMEX."""
@@ -189,9 +189,11 @@ def simulate(
 
     def chunk(carry, _):
         carry, _ = jax.lax.scan(one, carry, None, length=save_every)
-        return carry, carry
+        k, q, qd = carry
+        return carry, (k, jnp.stack(q), jnp.stack(qd))
 
-    carry0 = (jnp.asarray(0, dtype=int), qu0, qdu0)
+    split = lambda x: tuple(x[i] for i in range(x.shape[0]))  # noqa: E731
+    carry0 = (jnp.asarray(0, dtype=int), split(qu0), split(qdu0))
     _, (ks, qus, qdus) = jax.lax.scan(chunk, carry0, None, length=n_steps // save_every)
     ks = jnp.concatenate([ks[:1] * 0, ks])
     t = ks * dt
@@ -208,7 +210,8 @@ def _assemble(robot, system, t, qu, qdu) -> Trajectory:
         a = jnp.asarray(robot.prescribed, dtype=int)
         qa, qda, _ = jax.vmap(lambda s: tuple(jnp.stack(x) for x in system.prescribed_state(s)))(t)
         q, qd = q.at[:, a].set(qa), qd.at[:, a].set(qda)
-        torque = jax.vmap(system.effort)(t, qu, qdu)
+        split = lambda x: tuple(x[i] for i in range(x.shape[0]))  # noqa: E731
+        torque = jax.vmap(lambda s, x, v: system.effort(s, split(x), split(v)))(t, qu, qdu)
     else:
         torque = jnp.zeros((m, 0))
     tip, tip_vel = jax.vmap(lambda x, v: tip_state(robot, x, v))(q, qd)
