@@ -181,7 +181,7 @@ def mass_and_forces(
         pt = _point_of(points, load.link, load.X, n_links)
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
         f_body = f if load.follower else lie.matTvec(pt.R, f)
-        wrench = (0, 0, 0) + f_body
+        wrench = (f_body + (0, 0, 0)) if load.moment else ((0, 0, 0) + f_body)
         for j in range(n):
             F[j] = add(F[j], dot(pt.J[j], wrench))
     K, D = stiffness_and_damping(robot)
@@ -245,8 +245,8 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     for pm in robot.masses:
         body(_point_of(points, pm.link, pm.X, len(robot.links)), (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0)
     for load in robot.loads:
-        if load.follower:
-            continue  # a follower load has no potential
+        if load.follower or load.moment:
+            continue  # follower loads and couples are left out (no simple potential)
         pt = _point_of(points, load.link, load.X, len(robot.links))
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
         loads = sub(loads, dot(f, pt.p))

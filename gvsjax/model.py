@@ -159,16 +159,18 @@ class RigidLink:
 
 @struct.dataclass
 class PointLoad:
-    """A force of ``magnitude`` newtons along the unit vector ``direction``,
-    at material coordinate ``X`` in [0, 1] of link ``link`` (for a rigid link,
-    X = 1 is its far end, anything else its CoM). ``follower=False``: the
-    direction is fixed in the world; True: it turns with the section."""
+    """A force (N) or, with ``moment=True``, a couple (N m) of ``magnitude``
+    along the unit vector ``direction``, at material coordinate ``X`` in [0, 1]
+    of link ``link`` (for a rigid link, X = 1 is its far end, anything else its
+    CoM). ``follower=False``: the direction is fixed in the world; True: it is
+    given in the section's frame and turns with it."""
 
     magnitude: Any = 0.0
     link: int = struct.field(pytree_node=False, default=-1)
     X: float = struct.field(pytree_node=False, default=1.0)
     direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
     follower: bool = struct.field(pytree_node=False, default=False)
+    moment: bool = struct.field(pytree_node=False, default=False)
 
 
 @struct.dataclass
