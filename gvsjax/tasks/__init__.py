@@ -3,3 +3,5 @@
 from gvsjax.tasks.base import Environment, auto_reset_step, make, register, registered
 
 __all__ = ["Environment", "auto_reset_step", "make", "register", "registered"]
+
+from gvsjax.tasks import basketball  # noqa: E402,F401  (registers "basketball")

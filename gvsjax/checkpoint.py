@@ -1,0 +1,116 @@
+"""Checkpoints: flax.serialization bytes, written atomically, with a checksum.
+
+File layout (msgpack): ``{"format": FORMAT, "sha256": hex, "payload": bytes}``
+where ``payload`` is itself msgpack of ``{"train_state": flax to_bytes(state),
+"config": dict, "task": str, "step": int, "extra": dict}``. Writing goes to a
+temporary file in the same folder, is fsync'ed, then ``os.replace``d over the
+target, so a crash never leaves a half-written checkpoint under the real name.
+A truncated or altered file raises ``CheckpointError`` naming the file.
+
+PRNG keys: typed keys (``jax.random.key``) are stored as their raw key data
+and re-wrapped on load; legacy uint32 keys are stored as they are.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import serialization
+
+FORMAT = "gvsjax-checkpoint-v1"
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint file is missing, truncated, corrupted or of another format."""
+
+
+def _is_typed_key(x) -> bool:
+    return isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jax.dtypes.prng_key)
+
+
+def _raw(tree):
+    return jax.tree.map(lambda x: jax.random.key_data(x) if _is_typed_key(x) else x, tree)
+
+
+def write_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a fsync'ed temp file and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    try:  # make the rename itself durable
+        dir_fd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)
+    except OSError:
+        pass
+
+
+def save(path, train_state, config: dict, task: str, step: int, extra: dict | None = None) -> None:
+    """Save ``train_state`` (any pytree) with its config (JSON-able dict) atomically."""
+    payload = serialization.msgpack_serialize({
+        "train_state": serialization.to_bytes(_raw(jax.device_get(train_state))),
+        "config": config,
+        "task": task,
+        "step": int(step),
+        "extra": extra or {},
+    })
+    blob = serialization.msgpack_serialize({
+        "format": FORMAT, "sha256": hashlib.sha256(payload).hexdigest(), "payload": payload,
+    })
+    write_atomic(path, blob)
+
+
+def load_raw(path) -> dict:
+    """The checked payload: ``{"train_state": bytes, "config", "task", "step", "extra"}``."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
+    data = path.read_bytes()
+    try:
+        outer = serialization.msgpack_restore(data)
+        ok = isinstance(outer, dict) and outer.get("format") == FORMAT
+    except Exception:  # msgpack raises several types on truncated input
+        ok = False
+    if not ok:
+        raise CheckpointError(
+            f"checkpoint {str(path)!r} is truncated, corrupted or not a {FORMAT} file "
+            f"({len(data)} bytes)"
+        )
+    if hashlib.sha256(outer["payload"]).hexdigest() != outer["sha256"]:
+        raise CheckpointError(f"checkpoint {str(path)!r} is corrupted: checksum mismatch")
+    return serialization.msgpack_restore(outer["payload"])
+
+
+def restore_state(template, state_bytes: bytes):
+    """Fill ``template`` (a pytree of the right structure) from saved state bytes."""
+    restored = serialization.from_bytes(_raw(template), state_bytes)
+    return jax.tree.map(
+        lambda t, r: jax.random.wrap_key_data(r, impl=jax.random.key_impl(t))
+        if _is_typed_key(t) else jnp.asarray(r, dtype=jnp.asarray(t).dtype),
+        template, restored,
+    )
+
+
+def load(path, template) -> tuple[Any, dict]:
+    """``(train_state, meta)``; ``meta`` holds config, task, step and extra."""
+    raw = load_raw(path)
+    state = restore_state(template, raw.pop("train_state"))
+    return state, raw

@@ -1,0 +1,125 @@
+"""The basketball task: action mapping, flight geometry, cost, reward and targets."""
+
+import math
+
+import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from gvsjax.tasks import make
+from gvsjax.tasks import basketball as bb
+
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def env_and_params():
+    env = make("basketball")
+    return env, env.default_params()
+
+
+def test_action_mapping_hand_values(env_and_params):
+    _, P = env_and_params
+    a = jnp.array([[-1.0, -1.0], [1.0, 1.0], [0.0, 0.0], [3.0, -7.0], [0.2, -0.6]])
+    T, delta = bb.action_to_physical(a, P)
+    np.testing.assert_allclose(T, [0.5, 3.0, 1.75, 3.0, 0.5 + 0.6 * 2.5], rtol=1e-12)
+    np.testing.assert_allclose(delta, [0.85, 1.0, 0.925, 0.85, 0.85 + 0.2 * 0.15], rtol=1e-12)
+    back = bb.physical_to_action(T, delta, P)
+    np.testing.assert_allclose(back, np.clip(a, -1, 1), atol=1e-12)
+
+
+def test_closest_approach_hand_cases():
+    p0, v0, end = jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), 10.0
+    # a point on the path (tau = 0.5): cost 0
+    on = bb.flight_point(p0, v0, 0.5, G)
+    d, tau = bb.closest_approach(p0, v0, on, G, end)
+    assert float(d) < 1e-12 and abs(float(tau) - 0.5) < 1e-9
+    # behind the release point: the path's start is closest
+    d, tau = bb.closest_approach(p0, v0, jnp.array([-1.0, 0.0]), G, end)
+    assert abs(float(d) - 1.0) < 1e-12 and float(tau) == 0.0
+    # straight up, no gravity: distance from (1, 1) to the ray along +x is 1
+    d, _ = bb.closest_approach(p0, v0, jnp.array([1.0, 1.0]), 0.0 * G + 1e-9, end)
+    assert abs(float(d) - 1.0) < 1e-6
+    # past the floor end: the landing point is closest
+    end_floor = bb.floor_time(p0, v0, G, -1.0)
+    assert abs(float(end_floor) - math.sqrt(2.0 / G)) < 1e-12
+    land = bb.flight_point(p0, v0, end_floor, G)
+    d, tau = bb.closest_approach(p0, v0, land + jnp.array([0.0, -0.5]), G, end_floor)
+    assert abs(float(d) - 0.5) < 1e-3 and abs(float(tau) - float(end_floor)) < 1e-12
+
+
+def test_closest_approach_matches_dense_sampling():
+    rng = np.random.default_rng(0)
+    n = 400
+    p0 = rng.uniform(-1, 1, (n, 2))
+    v0 = rng.uniform(-14, 14, (n, 2))
+    target = rng.uniform([-8, -2], [2, 5], (n, 2))
+    end = np.asarray(bb.floor_time(jnp.asarray(p0), jnp.asarray(v0), G, -1.95))
+    d, _ = jax.vmap(bb.closest_approach, in_axes=(0, 0, 0, None, 0))(
+        jnp.asarray(p0), jnp.asarray(v0), jnp.asarray(target), G, jnp.asarray(end))
+    tau = np.linspace(0, 1, 200001)[None, :] * end[:, None]
+    pts = p0[:, None] + v0[:, None] * tau[..., None] + 0.5 * np.array([0, -G]) * tau[..., None] ** 2
+    dense = np.min(np.linalg.norm(pts - target[:, None], axis=-1), axis=1)
+    # exact <= sampled, and sampling on a fine grid comes within its resolution
+    assert np.all(np.asarray(d) <= dense + 1e-9)
+    np.testing.assert_allclose(np.asarray(d), dense, atol=2e-4)
+
+
+def test_release_matches_reference(env_and_params):
+    _, P = env_and_params
+    for T, tip, vel in [(0.5, (0.440682, 0.815432), (-13.68403, 7.85183)),
+                        (3.0, (-0.495256, 0.868742), (-3.82237, -2.17637))]:
+        p0, v0 = bb.release_state(P, T, 1.0)
+        np.testing.assert_allclose(p0, tip, atol=2e-5)
+        np.testing.assert_allclose(v0, vel, atol=2e-4)
+
+
+def test_step_cost_reward_and_exact_hit(env_and_params):
+    env, P = env_and_params
+    action = jnp.array([0.3, -0.2])
+    T, delta = bb.action_to_physical(action, P)
+    p0, v0 = bb.release_state(P, T, delta)
+    target = bb.flight_point(p0, v0, 0.4, G)  # on this throw's own path
+    state = bb.BasketballState(target=target, source_action=action, step=jnp.array(0))
+    obs, state2, reward, done, info = env.step(jax.random.PRNGKey(0), state, action, P)
+    assert float(info["cost"]) < 1e-9 and abs(float(reward) - 1.0) < 1e-8
+    assert bool(done) and bool(info["valid"]) and not bool(info["truncated"])
+    np.testing.assert_allclose(obs, bb.normalise(target, P))
+    # 10 cm off the path, normal to it: cost 0.1, reward exp(-0.22) ~ 0.8
+    vel = v0 + jnp.array([0.0, -G]) * 0.4
+    normal = jnp.array([-vel[1], vel[0]]) / jnp.linalg.norm(vel)
+    off = state.replace(target=target + 0.1 * normal)
+    _, _, reward, _, info = env.step(jax.random.PRNGKey(0), off, action, P)
+    assert abs(float(info["cost"]) - 0.1) < 1e-6
+    assert abs(float(reward) - math.exp(-0.22)) < 1e-6 and abs(float(reward) - 0.8) < 3e-3
+
+
+def test_nonfinite_action_is_invalid(env_and_params):
+    env, P = env_and_params
+    _, state = env.reset(jax.random.PRNGKey(1), P)
+    _, _, reward, done, info = env.step(jax.random.PRNGKey(0), state, jnp.array([jnp.nan, 0.0]), P)
+    assert not bool(info["valid"]) and float(reward) == 0.0 and bool(done)
+
+
+def test_targets_reachable_inside_window_and_spread(env_and_params):
+    env, P = env_and_params
+    keys = jax.random.split(jax.random.PRNGKey(2), 512)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, P)
+    assert np.all(np.abs(np.asarray(obs)) <= 1.0)
+    x0, x1, y0, y1 = P.window
+    t = np.asarray(state.target)
+    assert np.all((t[:, 0] >= x0) & (t[:, 0] <= x1) & (t[:, 1] >= y0) & (t[:, 1] <= y1))
+    # area-uniform: the far half of the court gets a fair share of targets
+    assert np.mean(t[:, 0] < -4.0) > 0.2
+    # the recorded grid action throws through its target (first 64, to stay fast)
+    _, _, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+        keys[:64], jax.tree.map(lambda x: x[:64], state), state.source_action[:64], P)
+    assert float(jnp.max(info["cost"])) < 1e-6
+
+
+def test_registry():
+    from gvsjax.tasks import registered
+    assert "basketball" in registered()
+    assert make("basketball").obs_size == 2
