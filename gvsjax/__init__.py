@@ -22,7 +22,7 @@ import jax  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
-from gvsjax.kinematics import backbone, jacobian_rates, jacobians, tip_state  # noqa: E402
+from gvsjax.kinematics import backbone, frames, jacobian_rates, jacobians, tip_state  # noqa: E402
 from gvsjax.model import (  # noqa: E402
     Joint, Material, PointLoad, PointMass, RigidLink, Robot, SoftLink, StrainBasis, Tendon,
 )
@@ -32,6 +32,6 @@ from gvsjax.simulate import Trajectory, simulate, stable_step_estimate  # noqa: 
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "RigidLink", "Robot", "SoftLink", "StrainBasis",
     "Tendon", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory", "stable_step_estimate",
-    "backbone", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
+    "backbone", "frames", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping",
 ]

@@ -237,6 +237,15 @@ def backbone(robot: Robot, q: jax.Array) -> jax.Array:
     return jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
 
 
+def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """World rotations (n_points, 3, 3) and positions (n_points, 3) of every sample point."""
+    q_s = _scalars(jnp.asarray(q))
+    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    R = jnp.stack([jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R]) for pt in pts])
+    p = jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
+    return R, p
+
+
 def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World position (3,) and linear velocity (3,) of the robot's last point."""
     pt = forward(robot, _scalars(jnp.asarray(q)), _scalars(jnp.asarray(qd)), with_psi=False)[-1]

@@ -77,11 +77,14 @@ def paper_arm(**overrides: Any) -> Robot:
 
 def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=1e5, poisson=0.5,
            order=1, n_gauss=5, basis="legendre", gravity=0.0) -> Robot:
-    """A straight rod clamped at the origin along +x with all six strains active."""
+    """A straight rod clamped at the origin along +x with all six strains active.
+
+    order: one polynomial order for every strain, or six (-1 = inactive)."""
+    orders = tuple(order) if isinstance(order, (tuple, list)) else (order,) * 6
     link = SoftLink(
         length=length, radius=radius,
         material=Material(youngs_modulus, density, damping, poisson),
-        basis=StrainBasis(orders=(order,) * 6, kind=basis),
+        basis=StrainBasis(orders=orders, kind=basis),
         joint=Joint("fixed"), n_gauss=n_gauss,
     )
     robot = Robot(links=(link,), gravity=gravity)

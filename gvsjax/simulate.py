@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import math
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import jax
@@ -99,34 +101,46 @@ class FreeDynamics:
         return jnp.stack([lie.as_array(x) for x in tau]) if tau else jnp.zeros((0,))
 
 
-def _as_motion(robot: Robot, base_angle, joint_motion, q0) -> Callable:
+@dataclass(frozen=True)
+class _Law:
+    """A user's t -> values callable, hashed by identity so that repeated
+    simulations with the same function reuse the compiled program."""
+
+    fn: Callable
+    size: int
+
+    def __call__(self, t):
+        return jnp.reshape(jnp.asarray(self.fn(t), dtype=float), (self.size,))
+
+
+def _motion_law(robot: Robot, base_angle, joint_motion) -> _Law | None:
     n_a = len(robot.prescribed)
     if base_angle is not None and joint_motion is not None:
         raise ValueError("give base_angle or joint_motion, not both")
     if base_angle is not None:
         require(callable(base_angle), "base_angle", base_angle, "None or a callable t -> angle (rad)")
         require(n_a == 1, "base_angle", base_angle, "only for robots with exactly one prescribed joint")
-        return lambda t: jnp.reshape(jnp.asarray(base_angle(t), dtype=float), (1,))
+        return _Law(base_angle, 1)
     if joint_motion is not None:
         require(callable(joint_motion), "joint_motion", joint_motion, f"a callable t -> ({n_a},) array")
-        return lambda t: jnp.reshape(jnp.asarray(joint_motion(t), dtype=float), (n_a,))
-    held = jnp.asarray([q0[i] for i in robot.prescribed], dtype=float).reshape((n_a,))
-    return lambda t: held + 0.0 * t  # held at the initial value
+        return _Law(joint_motion, n_a)
+    return None  # held at the initial value
 
 
-def _as_tension(robot: Robot, tendon_force) -> Callable | None:
+def _tension_law(robot: Robot, tendon_force) -> tuple[_Law | None, Any]:
+    """(callable law or None, constant tension array or None)."""
     if tendon_force is None:
-        return None
+        return None, None
     require(bool(robot.tendons), "tendon_force", tendon_force, "None: this robot has no tendon")
     if callable(tendon_force):
-        return tendon_force
-    value = np.asarray(tendon_force, dtype=float) if concrete(tendon_force) else None
-    if value is not None:
+        return _Law(tendon_force, len(robot.tendons)), None
+    if concrete(tendon_force):
+        value = np.asarray(tendon_force, dtype=float)
         require(
             value.shape in ((), (len(robot.tendons),)) and np.all(np.isfinite(value)) and np.all(value >= 0),
             "tendon_force", tendon_force, "a finite tension >= 0 N (one per tendon), or a callable",
         )
-    return lambda t: jnp.broadcast_to(jnp.asarray(tendon_force, dtype=float), (len(robot.tendons),))
+    return None, jnp.broadcast_to(jnp.asarray(tendon_force, dtype=float), (len(robot.tendons),))
 
 
 def simulate(
@@ -159,28 +173,42 @@ def simulate(
     integrator: "rk4" (default), "midpoint", "euler" or "imex" (see
     ``gvsjax.integrators``). save_every: keep every k-th state.
 
+    The compiled program is cached per robot structure, step count and
+    control functions: calling again with new numbers does not recompile.
     Bad input raises ValueError naming the parameter, before any compilation.
     Checks that need concrete numbers are skipped for traced arguments.
     """
     check_robot(robot)
     n = robot.n_dofs
-    step = integrators.get(integrator)
+    integrators.get(integrator)
     n_steps, dt = _steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
             "save_every", save_every, f"a positive int dividing n_steps={n_steps}")
     q0 = _initial(q0, n, "q0")
     qd0 = _initial(qd0, n, "qd0")
-    motion = _as_motion(robot, base_angle, joint_motion, q0)
-    tension = _as_tension(robot, tendon_force)
+    law = _motion_law(robot, base_angle, joint_motion)
+    tension_law, tension_value = _tension_law(robot, tendon_force)
     if check_stability and concrete(dt) and concrete(q0) and robot_is_concrete(robot):
-        limit = stable_step_estimate(robot, step.name, np.asarray(q0, dtype=float))
+        limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
         require(float(dt) <= limit, "dt", float(dt),
                 f"(0, {limit:.4g}] s: the {integrator} stability limit estimated at q0 "
                 "(or choose integrator='imex')")
-    system = FreeDynamics(robot, motion, tension)
+    return _run(robot, jnp.asarray(q0, dtype=float), jnp.asarray(qd0, dtype=float),
+                jnp.asarray(dt, dtype=float), tension_value, n_steps=n_steps, save_every=save_every,
+                integrator=integrator, law=law, tension_law=tension_law)
+
+
+@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "tension_law"))
+def _run(robot, q0, qd0, dt, tension_value, *, n_steps, save_every, integrator, law, tension_law):
+    if law is None:
+        held = q0[jnp.asarray(robot.prescribed, dtype=int)]
+        law = lambda t: held + 0.0 * t  # noqa: E731
+    tension = tension_law if tension_law is not None else (
+        None if tension_value is None else (lambda t: tension_value))
+    system = FreeDynamics(robot, law, tension)
+    step = integrators.get(integrator)
     u = jnp.asarray(robot.free, dtype=int)
-    qu0, qdu0 = jnp.asarray(q0)[u], jnp.asarray(qd0)[u]
-    dt = jnp.asarray(dt, dtype=float)
+    qu0, qdu0 = q0[u], qd0[u]
 
     def one(carry, _):
         k, q, qd = carry
@@ -195,8 +223,7 @@ def simulate(
     split = lambda x: tuple(x[i] for i in range(x.shape[0]))  # noqa: E731
     carry0 = (jnp.asarray(0, dtype=int), split(qu0), split(qdu0))
     _, (ks, qus, qdus) = jax.lax.scan(chunk, carry0, None, length=n_steps // save_every)
-    ks = jnp.concatenate([ks[:1] * 0, ks])
-    t = ks * dt
+    t = jnp.concatenate([jnp.zeros(1, dtype=ks.dtype), ks]) * dt
     qu = jnp.concatenate([qu0[None], qus])
     qdu = jnp.concatenate([qdu0[None], qdus])
     return _assemble(robot, system, t, qu, qdu)
