@@ -2,7 +2,7 @@
 
 File layout (msgpack): ``{"format": FORMAT, "sha256": hex, "payload": bytes}``
 where ``payload`` is itself msgpack of ``{"train_state": flax to_bytes(state),
-"config": dict, "task": str, "step": int, "extra": dict}``. Writing goes to a
+"config": JSON str, "task": str, "step": int, "extra": dict}``. Writing goes to a
 temporary file in the same folder, is fsync'ed, then ``os.replace``d over the
 target, so a crash never leaves a half-written checkpoint under the real name.
 A truncated or altered file raises ``CheckpointError`` naming the file.
@@ -14,6 +14,7 @@ and re-wrapped on load; legacy uint32 keys are stored as they are.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -67,10 +68,10 @@ def save(path, train_state, config: dict, task: str, step: int, extra: dict | No
     """Save ``train_state`` (any pytree) with its config (JSON-able dict) atomically."""
     payload = serialization.msgpack_serialize({
         "train_state": serialization.to_bytes(_raw(jax.device_get(train_state))),
-        "config": config,
+        "config": json.dumps(config),  # JSON: msgpack here cannot hold tuples
         "task": task,
         "step": int(step),
-        "extra": extra or {},
+        "extra": json.dumps(extra or {}),
     })
     blob = serialization.msgpack_serialize({
         "format": FORMAT, "sha256": hashlib.sha256(payload).hexdigest(), "payload": payload,
@@ -96,7 +97,9 @@ def load_raw(path) -> dict:
         )
     if hashlib.sha256(outer["payload"]).hexdigest() != outer["sha256"]:
         raise CheckpointError(f"checkpoint {str(path)!r} is corrupted: checksum mismatch")
-    return serialization.msgpack_restore(outer["payload"])
+    raw = serialization.msgpack_restore(outer["payload"])
+    raw["config"], raw["extra"] = json.loads(raw["config"]), json.loads(raw["extra"])
+    return raw
 
 
 def restore_state(template, state_bytes: bytes):

@@ -1,0 +1,282 @@
+"""Train a PPO agent on a gvsjax task from the command line.
+
+    python -m gvsjax.train task=basketball [key=value ...]
+    python -m gvsjax.train --help
+
+Every ``PPOConfig`` field is a ``key=value`` override (``--help`` lists them
+with the task's defaults); the run options are listed in ``RUN_DOCS``. The
+run folder ``out`` receives ``config.json``, ``metrics.csv`` (one row per PPO
+update; also TensorBoard events when ``tensorboardX`` or ``torch`` is
+installed), ``checkpoint.ckpt`` (see ``gvsjax.checkpoint``) and, at the end,
+the evaluation of ``gvsjax.evaluate`` (``eval.json``, ``eval_throws.csv``, PNG
+figures). ``resume=true out=DIR`` continues the run in DIR from its last
+checkpoint (optimizer state, PRNG key and update counter included); command
+line overrides then apply on top of the saved config (e.g. a larger
+``total_episodes``).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
+import jax
+import numpy as np
+
+from gvsjax import checkpoint
+from gvsjax.ppo import FIELD_DOCS, MATLAB_LIKE, PPOConfig, describe, init, make_update, num_updates
+from gvsjax.ppo.config import parse_value
+from gvsjax.tasks import make, registered
+
+# Tuned per task for the least wall time to the acceptance quality (README).
+TASK_DEFAULTS: dict[str, dict[str, Any]] = {
+    "basketball": dict(
+        num_envs=1024, num_steps=1, num_minibatches=4, update_epochs=4,
+        learning_rate=1e-3, clip_eps=0.2, ent_coef=0.0, init_log_std=-1.0,
+        finetune_fraction=0.0, total_episodes=300_000,
+    ),
+}
+# Named override sets applied before the user's own overrides.
+PRESETS: dict[str, dict[str, Any]] = {
+    "none": {},
+    # the paper's two phases: lr 1e-4 / clip 0.1, then fine-tuning at 1e-5 / 0.02
+    "paper": dict(learning_rate=1e-4, clip_eps=0.1, finetune_learning_rate=1e-5,
+                  finetune_clip_eps=0.02, finetune_fraction=0.3, anneal_lr=False),
+    "matlab": {**MATLAB_LIKE, "learning_rate": 1e-4, "clip_eps": 0.1},
+}
+RUN_DOCS: dict[str, tuple[Any, str]] = {
+    "task": ("basketball", f"task to train: one of {registered()}"),
+    "out": ("", "run folder (default runs/<task>-<date>-<time>)"),
+    "resume": (False, "continue the run in `out` from its last checkpoint"),
+    "preset": ("none", f"override set applied before yours: {sorted(PRESETS)}"),
+    "checkpoint_every": (60.0, "seconds of training between checkpoints"),
+    "eval_targets": (1000, "targets of the final evaluation (0 skips it)"),
+    "eval_seed": (-1, "seed of the final evaluation's targets (-1: 1_000_003 + seed)"),
+    "progress": (True, "show a tqdm progress bar"),
+}
+
+
+def _parse_run(key: str, text: str) -> Any:
+    default = RUN_DOCS[key][0]
+    try:
+        if isinstance(default, bool):
+            if text.lower() in ("1", "true", "yes", "on"):
+                return True
+            if text.lower() in ("0", "false", "no", "off"):
+                return False
+            raise ValueError
+        return type(default)(text)
+    except ValueError:
+        raise ValueError(f"{key}={text!r} is invalid; expected {type(default).__name__}") from None
+
+
+def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``key=value`` words -> (run options, PPOConfig overrides). Errors list valid keys."""
+    run = {k: v for k, (v, _) in RUN_DOCS.items()}
+    ppo: dict[str, Any] = {}
+    for item in argv:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep:
+            raise ValueError(f"argument {item!r} is not of the form key=value (see --help)")
+        if key in RUN_DOCS:
+            run[key] = _parse_run(key, text)
+        elif key in FIELD_DOCS:
+            ppo[key] = parse_value(key, text)
+        else:
+            raise ValueError(f"unknown key {key!r}; valid keys: {sorted(RUN_DOCS) + sorted(FIELD_DOCS)}")
+    if run["task"] not in registered():
+        raise ValueError(f"task={run['task']!r} is unknown; choose one of {registered()}")
+    if run["preset"] not in PRESETS:
+        raise ValueError(f"preset={run['preset']!r} is unknown; choose one of {sorted(PRESETS)}")
+    return run, ppo
+
+
+def build_config(task: str, preset: str, overrides: dict[str, Any]) -> PPOConfig:
+    """Task defaults, then the preset, then the user's overrides (validated)."""
+    return PPOConfig().replace(**{**TASK_DEFAULTS.get(task, {}), **PRESETS[preset], **overrides})
+
+
+def config_from_json(d: dict) -> PPOConfig:
+    """PPOConfig from a saved dict (extra keys such as ``task`` are ignored)."""
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in FIELD_DOCS}
+    return PPOConfig(**d)
+
+
+_STEP_CACHE: dict[tuple, Any] = {}  # jitted update functions, reused within one process
+
+
+def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int):
+    key = (task, config, per_call)
+    if key not in _STEP_CACHE:
+        _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
+    return _STEP_CACHE[key]
+
+
+def help_text() -> str:
+    lines = [__doc__.strip(), "", "Run options:"]
+    for key, (default, doc) in RUN_DOCS.items():
+        lines.append(f"  {key}={default}".ljust(34) + f"  {doc}")
+    for task in registered():
+        lines += ["", f"PPO config (defaults for task={task}):", describe(build_config(task, "none", {}))]
+    return "\n".join(lines)
+
+
+class MetricsLog:
+    """metrics.csv (append, columns fixed by the first row) and optional TensorBoard."""
+
+    def __init__(self, out: Path, resume_update: int | None):
+        self.path = out / "metrics.csv"
+        self.columns: list[str] | None = None
+        if resume_update is not None and self.path.exists():
+            with open(self.path, newline="") as f:  # drop rows past the checkpoint
+                rows = list(csv.DictReader(f))
+            if rows:
+                self.columns = list(rows[0].keys())
+                rows = [r for r in rows if int(r["update"]) < resume_update]
+                with open(self.path, "w", newline="") as f:
+                    w = csv.DictWriter(f, self.columns)
+                    w.writeheader()
+                    w.writerows(rows)
+        elif self.path.exists():
+            self.path.unlink()
+        self.tb = _tensorboard(out)
+
+    def write(self, rows: list[dict[str, float]]) -> None:
+        if not rows:
+            return
+        if self.columns is None:
+            self.columns = list(rows[0].keys())
+            with open(self.path, "w", newline="") as f:
+                csv.DictWriter(f, self.columns).writeheader()
+        with open(self.path, "a", newline="") as f:
+            w = csv.DictWriter(f, self.columns, extrasaction="ignore")
+            w.writerows(rows)
+        if self.tb is not None:
+            for r in rows:
+                for k, v in r.items():
+                    if k not in ("update", "episodes") and math.isfinite(v):
+                        self.tb.add_scalar(k, v, int(r["episodes"]))
+            self.tb.flush()
+
+
+def _tensorboard(out: Path):
+    for module in ("tensorboardX", "torch.utils.tensorboard"):
+        try:
+            mod = __import__(module, fromlist=["SummaryWriter"])
+            return mod.SummaryWriter(str(out / "tb"))
+        except Exception:  # not installed (or broken): CSV only
+            continue
+    return None
+
+
+def _rows(metrics: dict, wall: float) -> list[dict[str, float]]:
+    m = {k: np.asarray(v) for k, v in jax.device_get(metrics).items()}
+    rows = []
+    for i in range(len(m["update"])):
+        if int(m["update"][i]) < 0:  # skipped past the budget
+            continue
+        row = {"update": int(m["update"][i]), "episodes": int(m["episodes"][i]), "wall_s": wall}
+        row.update({k: float(v[i]) for k, v in m.items() if k not in ("update", "episodes")})
+        rows.append(row)
+    return rows
+
+
+def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
+    """Run (or resume) training; returns the run folder."""
+    task = run["task"]
+    out = Path(run["out"] or f"runs/{task}-{time.strftime('%Y%m%d-%H%M%S')}")
+    ckpt_path = out / "checkpoint.ckpt"
+    env = make(task)
+    if run["resume"]:
+        if not run["out"]:
+            raise ValueError("resume=true needs out=<run folder>")
+        meta = checkpoint.load_raw(ckpt_path)
+        config = config_from_json(meta["config"]).replace(**overrides)
+    else:
+        config = build_config(task, run["preset"], overrides)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps(
+        {"task": task, "preset": run["preset"], **dataclasses.asdict(config)}, indent=2))
+
+    t0 = time.perf_counter()
+    env_params = env.default_params()
+    state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
+    if run["resume"]:
+        state = checkpoint.restore_state(state, meta["train_state"])
+    total = num_updates(config, env.episode_length)
+    # ~8k episodes per jitted call: a responsive bar without Python overhead per update
+    per_call = max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
+    step_fn = _update_fn(task, config, env, env_params, per_call)
+    log = MetricsLog(out, int(state.update) if run["resume"] else None)
+    setup_s = time.perf_counter() - t0
+
+    bar = None
+    if run["progress"]:
+        from tqdm import tqdm
+        bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
+                   unit="ep", desc=f"train {task}", dynamic_ncols=True)
+    config_dict = {"task": task, **dataclasses.asdict(config)}
+    last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
+    while int(state.update) < total:
+        t_call = time.perf_counter()
+        state, metrics = step_fn(state)
+        jax.block_until_ready(state)
+        if compile_s is None:
+            compile_s = time.perf_counter() - t_call  # first call: compile + run
+        rows = _rows(metrics, time.perf_counter() - t0)
+        log.write(rows)
+        if bar is not None and rows:
+            bar.n = min(rows[-1]["episodes"], config.total_episodes)
+            bar.set_postfix(reward=f"{np.nanmean([r['episode_reward'] for r in rows]):.3f}",
+                            cost_cm=f"{100 * np.nanmean([r.get('episode_cost', np.nan) for r in rows]):.1f}")
+            bar.refresh()
+        if time.perf_counter() - last_save > run["checkpoint_every"]:
+            checkpoint.save(ckpt_path, state, config_dict, task, int(state.update))
+            last_save = time.perf_counter()
+    checkpoint.save(ckpt_path, state, config_dict, task, int(state.update))
+    if bar is not None:
+        bar.close()
+    train_s = time.perf_counter() - t_train
+    timing = {"setup_s": setup_s, "first_call_s": compile_s, "train_s": train_s,
+              "episodes": int(state.episodes), "updates": int(state.update)}
+    (out / "timing.json").write_text(json.dumps(timing, indent=2))
+    print(f"trained {timing['episodes']} episodes in {train_s:.1f} s "
+          f"(setup {setup_s:.1f} s, first call incl. compile {compile_s or 0:.1f} s)")
+
+    if run["eval_targets"] > 0:
+        from gvsjax import evaluate
+        seed = run["eval_seed"] if run["eval_seed"] >= 0 else 1_000_003 + config.seed
+        result = evaluate.evaluate_run(ckpt_path, out, n_targets=run["eval_targets"], seed=seed)
+        print(evaluate.summary(result))
+    print(f"outputs in {out}/: config.json, metrics.csv, checkpoint.ckpt, timing.json"
+          + (", eval.json, eval_throws.csv, learning_curve.png, error_histogram.png, throw.png"
+             if run["eval_targets"] > 0 else ""))
+    print(f"open {out}/learning_curve.png and {out}/error_histogram.png; "
+          f"re-evaluate with: python -m gvsjax.evaluate task={task} checkpoint={ckpt_path}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if any(a in ("-h", "--help", "help") for a in argv):
+        print(help_text())
+        return 0
+    try:
+        run, overrides = parse_args(argv)
+        train(run, overrides)
+    except (ValueError, checkpoint.CheckpointError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
