@@ -1,0 +1,91 @@
+"""Throws per second of the paper's basketball swing, batched (issue 2).
+
+Each throw: theta(t) = theta_F (t/T)^2, theta_F = 210 deg, a 5.886 N tip force,
+T ~ U[0.5, 3] s, simulated to release t = delta T, delta ~ U[0.85, 1], with a
+fixed number of RK4 steps per throw (dt = t_rel / n_steps, so every episode of
+a batch has the same length). The accuracy column is the worst release tip
+position error over the batch against the same throws at dt / 10.
+
+    python experiments/bench_sim.py [--n-steps 300] [--repeats 5] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import gvsjax as gv  # first: configures JAX
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+THETA_F = np.deg2rad(210.0)
+
+
+def make_throws(n_steps: int):
+    arm = gv.paper_arm(tip_force=5.886)
+
+    def throw(T, delta):
+        traj = gv.simulate(arm, delta * T, n_steps=n_steps, save_every=n_steps,
+                           base_angle=lambda t: THETA_F * (t / T) ** 2)
+        return traj.tip[-1], traj.tip_velocity[-1]
+
+    return jax.jit(jax.vmap(throw))
+
+
+def actions(batch: int, seed: int = 0):
+    k1, k2 = jax.random.split(jax.random.PRNGKey(seed))
+    return (jax.random.uniform(k1, (batch,), minval=0.5, maxval=3.0),
+            jax.random.uniform(k2, (batch,), minval=0.85, maxval=1.0))
+
+
+def timed(fn, *args, repeats: int) -> tuple[float, float]:
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        runs.append(time.perf_counter() - t0)
+    return first - float(np.median(runs)), float(np.median(runs))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n-steps", type=int, default=300)
+    ap.add_argument("--batches", type=str, default="1,256,1024,4096")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--json", type=str, default=None)
+    args = ap.parse_args()
+
+    T, d = actions(256, seed=1)
+    coarse = make_throws(args.n_steps)(T, d)[0]
+    fine = make_throws(10 * args.n_steps)(T, d)[0]
+    err = float(jnp.max(jnp.linalg.norm(coarse - fine, axis=-1)))
+    mean_t = float(jnp.mean(T * d))
+    print(f"n_steps={args.n_steps} per throw (dt <= {3.0 / args.n_steps * 1e3:.1f} ms), "
+          f"max release-position error vs dt/10: {err * 1e3:.2e} mm")
+
+    throws = make_throws(args.n_steps)
+    rows = []
+    for batch in [int(b) for b in args.batches.split(",")]:
+        compile_s, run_s = timed(throws, *actions(batch), repeats=args.repeats)
+        rows.append(dict(batch=batch, throws_per_s=batch / run_s,
+                         env_steps_per_s=batch * args.n_steps / run_s,
+                         sim_seconds_per_wall_second=batch * mean_t / run_s,
+                         median_run_s=run_s, compile_s=compile_s))
+    base = rows[0]["throws_per_s"]
+    print(f"{'batch':>6} {'throws/s':>10} {'RK4 steps/s':>12} {'sim s/wall s':>13} {'vs batch 1':>10} {'compile s':>9}")
+    for r in rows:
+        print(f"{r['batch']:>6} {r['throws_per_s']:>10.0f} {r['env_steps_per_s']:>12.3g} "
+              f"{r['sim_seconds_per_wall_second']:>13.0f} {r['throws_per_s'] / base:>9.1f}x {r['compile_s']:>9.1f}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(dict(n_steps=args.n_steps, release_error_m=err, rows=rows,
+                           cpu_count=jax.local_device_count(), jax=jax.__version__), fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
