@@ -1,0 +1,272 @@
+"""Pick and place (paper section IV-B): two 5 s steps, each aimed at a 2-D target.
+
+Physics. The paper's arm with one tendon at 2.5 cm from the midline
+(``gv.paper_arm(tendon_offset=0.025)``, q = (theta, q1, q2)), gravity on, no
+ball. In each step of ``step_time`` = 5 s (``n_steps`` RK4 steps) the base
+angle moves from its current value theta_0 to the commanded theta_F on the
+cycloidal profile of gvs-notes 9.6,
+
+    theta(t) = theta_0 + (theta_F - theta_0) s(t / T_s),
+    s(u) = u - sin(2 pi u) / (2 pi),
+
+whose velocity (theta_F - theta_0)(1 - cos 2 pi u) / T_s is a sinusoid,
+accelerating in the first half and decelerating in the second, with zero
+velocity and acceleration at both ends. The tendon tension follows the same
+smooth ramp s(u) from its value at the start of the step (0 N in step 1) to
+the commanded one, so neither control jumps at a step boundary. Step 2
+starts from step 1's end state (q, qd and the tension).
+
+Action (2,) in [-1, 1], clipped: theta_F = pi a_0 (rad) and the tension
+T = 30 (a_1 + 1) / 2 N (a tendon pulls only). Observation (9,):
+theta / pi, q1 / q_scale, q2 / q_scale, qd / qd_scale (3), the current
+step's target / target_scale (2), the step indicator (0 pick, 1 place).
+Reward per step exp(-k d), k = 4.46 1/m (0.8 at d = 5 cm), d the distance
+(m) from the tip to the step's target at the end of the step. The episode
+ends after step 2. A non-finite state gives ``info["valid"] = False``,
+``done`` and reward 0.
+
+Reachable targets. The tendon moment is at most 30 N x 2.5 cm = 0.75 N m,
+about 2 % of the gravity moment of a horizontal arm (38.5 N m, gvs-notes
+doubt 6): the arm mostly hangs from its base angle and the tension trims
+the tip by ~1-2 cm. The reachable set is therefore a thin band around a
+closed curve of radius ~0.7-1 m (shorter where the horizontal arm sags).
+At construction ``make_params`` simulates ``n_pairs`` random episodes
+(actions uniform in [-1, 1]^2 for both steps, with the env's own
+``run_step``) and stores the end-of-step tips: row i is a target pair
+(pick, place) that the stored actions reach exactly (to float precision).
+The last ``n_test`` rows are held out: ``split="test"`` (evaluation)
+draws only from them, ``"train"`` only from the others. ``reset`` is a pure
+table look-up: it never simulates.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+import gvsjax as gv
+from gvsjax.tasks.base import register
+
+PAPER_PAIR = ((0.884, -0.344), (-0.675, -0.707))  # m, Table I targets
+
+
+@struct.dataclass
+class PickPlaceParams:
+    """Task parameters (SI units). The target tables are built by ``make_params``."""
+
+    arm: Any  # gv.Robot pytree
+    step_time: float = 5.0  # s, duration of one step
+    angle_max: float = math.pi  # rad, theta_F = angle_max * a_0
+    tension_max: float = 30.0  # N, T = tension_max * (a_1 + 1) / 2
+    k: float = 4.46  # 1/m, reward exp(-k d)
+    q_scale: float = 2.0  # obs: curvature coefficients q1, q2 / q_scale
+    qd_scale: float = 1.0  # obs: rates (rad/s and 1/s) / qd_scale
+    target_scale: float = 1.0  # m, obs: target / target_scale
+    n_steps: int = struct.field(pytree_node=False, default=500)  # RK4 steps per 5 s step
+    split: str = struct.field(pytree_node=False, default="train")  # "train", "test" or "all"
+    n_test: int = struct.field(pytree_node=False, default=0)  # held-out rows at the table's end
+    # target tables, P rows (see module docstring)
+    pick: jax.Array = None  # (P, 2) m, tip at the end of step 1
+    place: jax.Array = None  # (P, 2) m, tip at the end of step 2
+    pick_action: jax.Array = None  # (P, 2) in [-1, 1]
+    place_action: jax.Array = None  # (P, 2) in [-1, 1]
+
+
+@struct.dataclass
+class PickPlaceState:
+    q: jax.Array  # (3,) theta rad, q1, q2
+    qd: jax.Array  # (3,)
+    tension: jax.Array  # () N, tendon tension now
+    step: jax.Array  # () int32, 0 before the pick, 1 before the place, 2 at the end
+    targets: jax.Array  # (2, 2) m, pick and place targets
+
+
+# ----------------------------------------------------------------------------- physics
+
+
+def action_to_physical(action, params: PickPlaceParams):
+    """(..., 2) action in [-1, 1] (clipped) -> (theta_F rad, tension N)."""
+    a = jnp.clip(action, -1.0, 1.0)
+    return params.angle_max * a[..., 0], params.tension_max * (a[..., 1] + 1.0) / 2.0
+
+
+def physical_to_action(theta_final, tension, params: PickPlaceParams):
+    """Inverse of ``action_to_physical`` (no clipping)."""
+    return jnp.stack([theta_final / params.angle_max,
+                      2.0 * tension / params.tension_max - 1.0], axis=-1)
+
+
+def cycloid(u):
+    """s(u) = u - sin(2 pi u) / (2 pi): 0 -> 1 with s' = s'' = 0 at u = 0 and 1."""
+    return u - jnp.sin(2.0 * jnp.pi * u) / (2.0 * jnp.pi)
+
+
+def controls(theta0, theta_final, tension0, tension, step_time):
+    """The step's laws t -> theta (rad) and t -> tension (N), t in [0, step_time]."""
+    angle = lambda t: theta0 + (theta_final - theta0) * cycloid(t / step_time)  # noqa: E731
+    pull = lambda t: tension0 + (tension - tension0) * cycloid(t / step_time)  # noqa: E731
+    return angle, pull
+
+
+def run_step(params: PickPlaceParams, q, qd, tension0, theta_final, tension, save_every=None):
+    """Simulate one step from (q, qd, tension0): the ``gv.Trajectory`` (end state last).
+
+    ``save_every`` defaults to ``n_steps`` (start and end states only).
+    """
+    angle, pull = controls(q[0], theta_final, tension0, tension, params.step_time)
+    return gv.simulate(params.arm, params.step_time, n_steps=params.n_steps, base_angle=angle,
+                       tendon_force=pull, q0=q, qd0=qd, save_every=save_every or params.n_steps,
+                       check_stability=False)
+
+
+def episode(params: PickPlaceParams, actions, save_every=None):
+    """Both steps from rest for actions (2, 2): the two trajectories."""
+    theta1, t1 = action_to_physical(actions[0], params)
+    theta2, t2 = action_to_physical(actions[1], params)
+    zero = jnp.zeros(3)
+    tr1 = run_step(params, zero, zero, 0.0, theta1, t1, save_every)
+    tr2 = run_step(params, tr1.q[-1], tr1.qd[-1], t1, theta2, t2, save_every)
+    return tr1, tr2
+
+
+def episode_distances(params: PickPlaceParams, actions, targets):
+    """(2,) tip-to-target distances (m) of both steps; differentiable in ``actions``."""
+    tr1, tr2 = episode(params, actions)
+    tips = jnp.stack([tr1.tip[-1, :2], tr2.tip[-1, :2]])
+    return jnp.sqrt(jnp.sum((tips - targets) ** 2, -1) + 1e-30), tips
+
+
+# ----------------------------------------------------------------------------- targets
+
+
+def _tables(base: PickPlaceParams, n_pairs: int, seed: int, batch: int = 1024) -> dict:
+    rng = np.random.default_rng(seed)
+    acts = rng.uniform(-1.0, 1.0, (n_pairs, 2, 2))
+    run = jax.jit(jax.vmap(lambda a: tuple(tr.tip[-1, :2] for tr in episode(base, a))))
+    tips = [run(jnp.asarray(acts[i:i + batch])) for i in range(0, n_pairs, batch)]
+    pick = np.concatenate([np.asarray(t[0]) for t in tips])
+    place = np.concatenate([np.asarray(t[1]) for t in tips])
+    if not (np.all(np.isfinite(pick)) and np.all(np.isfinite(place))):
+        raise RuntimeError("pickplace: a table episode diverged; check the arm and n_steps")
+    return dict(pick=pick, place=place, pick_action=acts[:, 0], place_action=acts[:, 1])
+
+
+_CACHE: dict[tuple, dict] = {}  # tables of the default arm, per argument set
+
+
+def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
+                **overrides) -> PickPlaceParams:
+    """Params with target tables built (seconds the first time; cached for the default arm).
+
+    ``overrides`` are fields of ``PickPlaceParams`` (e.g. ``n_steps``,
+    ``split``, ``arm``); ``arm`` defaults to ``gv.paper_arm(tendon_offset=0.025)``.
+    """
+    unknown = sorted(set(overrides) - set(PickPlaceParams.__dataclass_fields__))
+    if unknown:
+        raise ValueError(f"unknown pickplace parameter(s) {unknown}; valid: "
+                         f"{sorted(PickPlaceParams.__dataclass_fields__)}")
+    if not 0 < n_test < n_pairs:
+        raise ValueError(f"n_test={n_test} must be in (0, n_pairs={n_pairs})")
+    arm = overrides.pop("arm", None)
+    base = PickPlaceParams(arm=arm if arm is not None else gv.paper_arm(tendon_offset=0.025),
+                           n_test=n_test, **overrides)
+    table_key = (n_pairs, seed, base.n_steps, base.step_time, base.angle_max, base.tension_max)
+    if arm is not None:
+        tables = _tables(base, n_pairs, seed)
+    else:
+        if table_key not in _CACHE:
+            _CACHE[table_key] = _tables(base, n_pairs, seed)
+        tables = _CACHE[table_key]
+    return base.replace(**{k: jnp.asarray(v) for k, v in tables.items()})
+
+
+def row_range(params: PickPlaceParams) -> tuple[int, int]:
+    """[lo, hi) rows of the table that ``reset`` draws from."""
+    n = params.pick.shape[0]
+    return {"train": (0, n - params.n_test), "test": (n - params.n_test, n),
+            "all": (0, n)}[params.split]
+
+
+def sample_targets(key, params: PickPlaceParams):
+    """A reachable (pick, place) pair (2, 2) m and its table row."""
+    lo, hi = row_range(params)
+    row = jax.random.randint(key, (), lo, hi)
+    return jnp.stack([params.pick[row], params.place[row]]), row
+
+
+# ----------------------------------------------------------------------------- env
+
+
+def observe(state: PickPlaceState, params: PickPlaceParams):
+    """The (9,) observation of ``state`` (see the module docstring)."""
+    i = jnp.minimum(state.step, 1)
+    q = state.q / jnp.array([jnp.pi, params.q_scale, params.q_scale])
+    return jnp.concatenate([q, state.qd / params.qd_scale, state.targets[i] / params.target_scale,
+                            i[None].astype(q.dtype)])
+
+
+def _reset_state(targets) -> PickPlaceState:
+    return PickPlaceState(q=jnp.zeros(3), qd=jnp.zeros(3), tension=jnp.zeros(()),
+                          step=jnp.zeros((), jnp.int32), targets=targets)
+
+
+class PickPlace:
+    """The pick-and-place task (functional env API of ``gvsjax.tasks.base``)."""
+
+    name = "pickplace"
+    obs_size = 9
+    action_size = 2
+    episode_length = 2
+
+    def default_params(self) -> PickPlaceParams:
+        return make_params()
+
+    def reset(self, key, params: PickPlaceParams):
+        targets, _ = sample_targets(key, params)
+        state = _reset_state(targets)
+        return observe(state, params), state
+
+    def reset_to(self, targets, params: PickPlaceParams):
+        """Reset with given targets (2, 2) m (e.g. the paper's pair)."""
+        state = _reset_state(jnp.asarray(targets, dtype=float))
+        return observe(state, params), state
+
+    def step(self, key, state: PickPlaceState, action, params: PickPlaceParams):
+        theta_f, tension = action_to_physical(action, params)
+        tr = run_step(params, state.q, state.qd, state.tension, theta_f, tension)
+        q, qd, tip = tr.q[-1], tr.qd[-1], tr.tip[-1, :2]
+        i = jnp.minimum(state.step, 1)
+        d = jnp.sqrt(jnp.sum((tip - state.targets[i]) ** 2))
+        valid = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(qd)) & jnp.isfinite(d)
+        reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, d, 0.0)), 0.0)
+        new = state.replace(q=jnp.where(valid, q, 0.0), qd=jnp.where(valid, qd, 0.0),
+                            tension=tension, step=state.step + 1)
+        done = (new.step >= self.episode_length) | ~valid
+        info = {"distance": d, "theta_final": theta_f, "tension": tension,
+                "tip_x": tip[0], "tip_y": tip[1], "valid": valid,
+                "truncated": jnp.zeros((), bool)}
+        return observe(new, params), new, reward, done, info
+
+
+def default_ppo_config():
+    """PPOConfig tuned for this task (separate 128-32 ReLU actor and critic, as the paper)."""
+    from gvsjax.ppo import PPOConfig
+
+    return PPOConfig(**PPO_DEFAULTS)
+
+
+# the overrides train.py's TASK_DEFAULTS["pickplace"] should hold (see README)
+PPO_DEFAULTS: dict[str, Any] = dict(
+    network="separate", actor_hidden=(128, 32), critic_hidden=(128, 32), activation="relu",
+    num_envs=512, num_steps=2, num_minibatches=4, update_epochs=4, gamma=1.0, gae_lambda=1.0,
+    learning_rate=1e-3, clip_eps=0.2, ent_coef=0.0, init_log_std=-1.0, anneal_lr=True,
+    finetune_fraction=0.0, total_episodes=200_000,
+)
+
+
+register("pickplace", PickPlace)
