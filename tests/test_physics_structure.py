@@ -140,3 +140,21 @@ def test_tip_converges_with_quadrature_points():
     errs = [np.linalg.norm(tip(n) - ref) for n in (3, 5, 8)]
     # gvs-notes 3.2: 1.8e-3, 3.3e-4, 6.1e-5 m for 4th-order Magnus
     np.testing.assert_allclose(errs, [1.8e-3, 3.3e-4, 6.1e-5], rtol=0.1)
+
+
+def test_jacobians_map_rates_to_twists():
+    robot = rigid_soft_chain()
+    rng = np.random.default_rng(1)
+    q = jnp.asarray(rng.normal(size=robot.n_dofs))
+    qd = jnp.asarray(rng.normal(size=robot.n_dofs))
+    J = gv.jacobians(robot, q)  # (points, 6, n), body frame
+    R, p = gv.frames(robot, q)
+    _, v_tip = gv.tip_state(robot, q, qd)
+    np.testing.assert_allclose(R[-1] @ (J[-1] @ qd)[3:], v_tip, atol=1e-12)
+    # world velocity of every point equals the time derivative of its position
+    p_dot = jax.jvp(lambda x: gv.frames(robot, x)[1], (q,), (qd,))[1]
+    np.testing.assert_allclose(jnp.einsum("kij,kj->ki", R, (J @ qd)[:, 3:]), p_dot, atol=1e-12)
+    # Jdot is the derivative of J along qd (central differences)
+    h = 1e-6
+    fd = (gv.jacobians(robot, q + h * qd) - gv.jacobians(robot, q - h * qd)) / (2 * h)
+    np.testing.assert_allclose(gv.jacobian_rates(robot, q, qd), fd, atol=1e-7)
