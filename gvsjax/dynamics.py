@@ -233,7 +233,8 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
 
     def body(pt, diag, weight):
         nonlocal kinetic, grav
-        kinetic = add(kinetic, mul(0.5 * 1.0, mul(weight, dot(pt.eta, tuple(mul(m, e) for m, e in zip(diag, pt.eta))))))
+        eta_M_eta = dot(pt.eta, tuple(mul(m, e) for m, e in zip(diag, pt.eta)))
+        kinetic = add(kinetic, mul(0.5, mul(weight, eta_M_eta)))
         grav = sub(grav, mul(mul(weight, diag[3]), dot(g_world, pt.p)))
 
     for pt in points:
@@ -252,5 +253,5 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
         loads = sub(loads, dot(f, pt.p))
     K, _ = stiffness_and_damping(robot)
     elastic = mul(0.5, total([mul(mul(K[j][k], qs[j]), qs[k]) for j in range(n) for k in range(n)]))
-    return {k: lie.as_array(v) for k, v in
-            dict(kinetic=kinetic, elastic=elastic, gravity=grav, loads=loads).items()}
+    parts = dict(kinetic=kinetic, elastic=elastic, gravity=grav, loads=loads)
+    return {k: lie.as_array(v) for k, v in parts.items()}

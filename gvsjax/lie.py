@@ -92,7 +92,7 @@ def const(x: float) -> Scalar:
     return 0 if x == 0.0 else x
 
 
-def as_array(a: Scalar, like: Any = None) -> jax.Array:
+def as_array(a: Scalar) -> jax.Array:
     """A scalar as a JAX array (structural zeros become 0.0)."""
     if is_zero(a) or isinstance(a, (int, float)):
         return jnp.asarray(float(a), dtype=jnp.result_type(float))
