@@ -46,19 +46,27 @@ def load_policy(ckpt_path):
     return config, env, env_params, state.params
 
 
+_ROLLOUTS: dict[tuple, object] = {}  # jitted rollouts per (task, network), reused in-process
+_NETWORK_FIELDS = ("network", "shared_hidden", "actor_hidden", "critic_hidden", "activation",
+                   "std_mode", "init_log_std", "min_log_std")
+
+
 def rollout(config, env, env_params, params, n_targets: int, seed: int) -> dict[str, np.ndarray]:
     """Targets (n, 2), actions, T, delta, miss (m) of the deterministic policy."""
-    apply_fn = make_network(config, env.action_size).apply
-    keys = jax.random.split(jax.random.PRNGKey(seed), n_targets)
+    key = (env.name,) + tuple(getattr(config, f) for f in _NETWORK_FIELDS)
+    if key not in _ROLLOUTS:
+        apply_fn = make_network(config, env.action_size).apply
 
-    @jax.jit
-    def run(keys):
-        obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, env_params)
-        action = policy_action(params, apply_fn, obs.astype(jnp.float32)).astype(jnp.float64)
-        _, _, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, state, action, env_params)
-        return state.target, action, info
+        @jax.jit
+        def run(params, keys):
+            obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, env_params)
+            action = policy_action(params, apply_fn, obs.astype(jnp.float32)).astype(jnp.float64)
+            _, _, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+                keys, state, action, env_params)
+            return state.target, action, info
 
-    target, action, info = run(keys)
+        _ROLLOUTS[key] = run
+    target, action, info = _ROLLOUTS[key](params, jax.random.split(jax.random.PRNGKey(seed), n_targets))
     miss = np.asarray(info["cost"], float)
     miss = np.where(np.asarray(info["valid"]), miss, np.inf)
     return {"target": np.asarray(target), "action": np.asarray(action),
