@@ -1,0 +1,166 @@
+"""Table I, Fig. 6 and the reachable set of the pick-and-place task.
+
+    python experiments/pickplace_figures.py [checkpoint=PATH] [out=figures]
+
+Always writes ``pickplace_reachable.png``: the target tables (tips at the end
+of step 1 and step 2 for random actions) in the plane and as radius against
+angle about the joint, with the paper's pair marked: the reachable set is a
+band ~1.5 cm thick just inside the 1 m circle (the arm hangs from its base
+angle; the 0.75 N m tendon moment only trims it), so the paper's targets at
+0.949 m and 0.978 m from the joint are not exactly reachable with this model.
+
+With a checkpoint (``runs/<run>/checkpoint.ckpt`` of ``python -m gvsjax.train
+task=pickplace``), the deterministic policy is run on the paper's pair:
+``pickplace_table1.md`` / ``.json`` (Table I: targets, tips, distances, and
+the actions) and ``pickplace_fig6.png`` (Fig. 6: the arm's shapes every 0.5 s
+over both steps, the joint angle and the tendon tension over the 10 s).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import gvsjax as gv
+import jax
+import jax.numpy as jnp
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from gvsjax.tasks import pickplace as pp  # noqa: E402
+
+
+def reachable_figure(params, path) -> Path:
+    pick, place = np.asarray(params.pick), np.asarray(params.place)
+    paper = np.asarray(pp.PAPER_PAIR)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5))
+    ax.scatter(*pick.T, s=2, label="step 1 tips (pick targets)")
+    ax.scatter(*place.T, s=2, alpha=0.5, label="step 2 tips (place targets)")
+    ax.plot(*paper.T, "r*", ms=12, label="paper's pair (Table I)")
+    c = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(np.cos(c), np.sin(c), "k:", lw=0.8, label="1 m circle")
+    ax.plot(0, 0, "ko")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set_title("reachable targets (end-of-step tips of random actions)")
+    for pts, lab in ((pick, "step 1"), (place, "step 2")):
+        bx.scatter(np.degrees(np.arctan2(pts[:, 0], -pts[:, 1])), 100 * np.hypot(*pts.T), s=2, label=lab)
+    bx.plot(np.degrees(np.arctan2(paper[:, 0], -paper[:, 1])), 100 * np.hypot(*paper.T), "r*", ms=12,
+            label="paper's pair")
+    bx.set_xlabel("tip angle about the joint [deg] (0: hanging, 180: upright)")
+    bx.set_ylabel("distance from the joint [cm]")
+    bx.legend(fontsize=8)
+    bx.set_title("the reachable band (radius vs angle)")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def policy_episode(ckpt, targets):
+    """Actions (2, 2) of the checkpoint's deterministic policy on a target pair (2, 2)."""
+    from gvsjax.evaluate import load_policy
+    from gvsjax.ppo import make_network, policy_action
+
+    config, env, params, net = load_policy(ckpt)
+    apply_fn = make_network(config, env.action_size).apply
+    policy = lambda o: policy_action(net, apply_fn, o.astype(jnp.float32)).astype(float)  # noqa: E731
+    acts, tips, d, valid = jax.jit(lambda t: pp.rollout(params, policy, t))(jnp.asarray(targets)[None])
+    return params, np.asarray(acts[0])
+
+
+def table1(params, actions, targets, out: Path) -> dict:
+    d, tips = jax.jit(lambda a, t: pp.episode_distances(params, a, t))(jnp.asarray(actions), jnp.asarray(targets))
+    theta, tension = pp.action_to_physical(jnp.asarray(actions), params)
+    rows = []
+    lines = ["|        | X_target [m] | Y_target [m] | X_tip [m] | Y_tip [m] | Distance [cm] "
+             "| theta_F [deg] | T [N] |", "|---|---|---|---|---|---|---|---|"]
+    for k in range(2):
+        t, p = targets[k], np.asarray(tips[k])
+        rows.append({"target": list(map(float, t)), "tip": p.tolist(), "distance_m": float(d[k]),
+                     "theta_final_rad": float(theta[k]), "tension_N": float(tension[k])})
+        lines.append(f"| Step {k + 1} | {t[0]:.3f} | {t[1]:.3f} | {p[0]:.3f} | {p[1]:.3f} | "
+                     f"{100 * float(d[k]):.2f} | {np.degrees(float(theta[k])):.1f} | {float(tension[k]):.1f} |")
+    (out / "pickplace_table1.md").write_text("\n".join(lines) + "\n")
+    (out / "pickplace_table1.json").write_text(json.dumps(rows, indent=2))
+    print("\n".join(lines))
+    return {"rows": rows}
+
+
+def fig6(params, actions, targets, path, every: int = 50) -> Path:
+    """Shapes every ``every`` RK4 steps (0.5 s at 500 steps), angle and tension over time."""
+    save = 5
+    tr1, tr2 = pp.episode(params, jnp.asarray(actions), save_every=save)
+    theta, tension = (np.asarray(x) for x in pp.action_to_physical(jnp.asarray(actions), params))
+    T = params.step_time
+    fig = plt.figure(figsize=(13, 8))
+    axes = [fig.add_subplot(2, 2, 1), fig.add_subplot(2, 2, 2), fig.add_subplot(2, 1, 2)]
+    tension0 = (0.0, tension[0])
+    for k, tr in enumerate((tr1, tr2)):
+        ax = axes[k]
+        q = np.asarray(tr.q)
+        idx = range(0, len(q), every // save)
+        cmap = plt.get_cmap("viridis")
+        for j, i in enumerate(idx):
+            pts = np.asarray(gv.backbone(params.arm, jnp.asarray(q[i])))
+            ax.plot(pts[:, 0], pts[:, 1], color=cmap(j / max(len(idx) - 1, 1)), lw=1.2)
+        tip = np.asarray(tr.tip)
+        ax.plot(tip[:, 0], tip[:, 1], "k--", lw=0.7, label="tip path")
+        ax.plot(*targets[k], "r*", ms=12, label="target")
+        ax.plot(0, 0, "ks")
+        ax.set_aspect("equal")
+        ax.set_xlim(-1.15, 1.15)
+        ax.set_ylim(-1.15, 1.15)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+        d = np.hypot(*(tip[-1, :2] - targets[k]))
+        ax.set_title(f"step {k + 1}: theta_F = {np.degrees(theta[k]):.1f} deg, "
+                     f"T = {tension[k]:.1f} N, miss {100 * d:.2f} cm (shapes every {every * T / params.n_steps:.1f} s)",
+                     fontsize=9)
+    t = np.concatenate([np.asarray(tr1.t), T + np.asarray(tr2.t)])
+    angle = np.concatenate([np.asarray(tr1.q[:, 0]), np.asarray(tr2.q[:, 0])])
+    pull = np.concatenate([tension0[k] + (tension[k] - tension0[k]) * np.asarray(pp.cycloid(tr.t / T))
+                           for k, tr in enumerate((tr1, tr2))])
+    ax = axes[2]
+    ax.plot(t, np.degrees(angle), "tab:blue")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("joint angle [deg]", color="tab:blue")
+    ax.axvline(T, color="k", lw=0.6, ls=":")
+    bx = ax.twinx()
+    bx.plot(t, pull, "tab:red")
+    bx.set_ylabel("tendon tension [N]", color="tab:red")
+    ax.set_title("joint angle (cycloidal profile) and tendon tension (same smooth ramp) over both steps")
+    path = Path(path)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str]) -> None:
+    args = {"checkpoint": "", "out": "figures"}
+    for item in argv:
+        key, _, value = item.partition("=")
+        if key not in args:
+            raise SystemExit(f"unknown argument {item!r}; valid: checkpoint=PATH out=DIR")
+        args[key] = value
+    out = Path(args["out"])
+    out.mkdir(parents=True, exist_ok=True)
+    params = pp.make_params()
+    print("wrote", reachable_figure(params, out / "pickplace_reachable.png"))
+    if args["checkpoint"]:
+        targets = np.asarray(pp.PAPER_PAIR)
+        params, actions = policy_episode(args["checkpoint"], targets)
+        table1(params, actions, targets, out)
+        print("wrote", out / "pickplace_table1.md", out / "pickplace_table1.json")
+        print("wrote", fig6(params, actions, targets, out / "pickplace_fig6.png"))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
