@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gvsjax as gv  # noqa: E402
+import jax  # noqa: E402
 
 
 def _save(fig, path) -> Path:
@@ -80,12 +81,17 @@ def error_histogram(miss_m, path, max_cm: int = 10) -> Path:
     return _save(fig, path)
 
 
-def _release(params, T: float, delta: float):
-    """q at release (n,), tip p0 (2,), v0 (2,) by simulating the throw (float T, delta)."""
+@jax.jit
+def _release_jit(params, T, delta):
     law = lambda t: params.theta_final * (t / T) ** 2  # noqa: E731
     traj = gv.simulate(params.arm, delta * T, n_steps=params.n_steps, base_angle=law,
                        save_every=params.n_steps, check_stability=False)
-    return np.asarray(traj.q[-1]), np.asarray(traj.tip[-1, :2]), np.asarray(traj.tip_velocity[-1, :2])
+    return traj.q[-1], traj.tip[-1, :2], traj.tip_velocity[-1, :2]
+
+
+def _release(params, T: float, delta: float):
+    """q at release (n,), tip p0 (2,), v0 (2,) by simulating the throw (float T, delta)."""
+    return tuple(np.asarray(x) for x in _release_jit(params, float(T), float(delta)))
 
 
 def _path(p0, v0, g, tau_end, n=400):

@@ -14,10 +14,20 @@ from gvsjax.tasks import basketball as bb
 G = 9.81
 
 
+class _Jitted:
+    """The env with jitted step (eager simulation would compile at every call)."""
+
+    def __init__(self, env):
+        self.env, self.step, self.reset = env, jax.jit(env.step), env.reset
+
+
 @pytest.fixture(scope="module")
 def env_and_params():
     env = make("basketball")
-    return env, env.default_params()
+    return _Jitted(env), env.default_params()
+
+
+_release = jax.jit(bb.release_state)
 
 
 def test_action_mapping_hand_values(env_and_params):
@@ -52,26 +62,26 @@ def test_closest_approach_hand_cases():
 
 def test_closest_approach_matches_dense_sampling():
     rng = np.random.default_rng(0)
-    n = 400
+    n = 100
     p0 = rng.uniform(-1, 1, (n, 2))
     v0 = rng.uniform(-14, 14, (n, 2))
     target = rng.uniform([-8, -2], [2, 5], (n, 2))
     end = np.asarray(bb.floor_time(jnp.asarray(p0), jnp.asarray(v0), G, -1.95))
     d, _ = jax.vmap(bb.closest_approach, in_axes=(0, 0, 0, None, 0))(
         jnp.asarray(p0), jnp.asarray(v0), jnp.asarray(target), G, jnp.asarray(end))
-    tau = np.linspace(0, 1, 200001)[None, :] * end[:, None]
+    tau = np.linspace(0, 1, 50001)[None, :] * end[:, None]
     pts = p0[:, None] + v0[:, None] * tau[..., None] + 0.5 * np.array([0, -G]) * tau[..., None] ** 2
     dense = np.min(np.linalg.norm(pts - target[:, None], axis=-1), axis=1)
     # exact <= sampled, and sampling on a fine grid comes within its resolution
     assert np.all(np.asarray(d) <= dense + 1e-9)
-    np.testing.assert_allclose(np.asarray(d), dense, atol=2e-4)
+    np.testing.assert_allclose(np.asarray(d), dense, atol=1e-3)
 
 
 def test_release_matches_reference(env_and_params):
     _, P = env_and_params
     for T, tip, vel in [(0.5, (0.440682, 0.815432), (-13.68403, 7.85183)),
                         (3.0, (-0.495256, 0.868742), (-3.82237, -2.17637))]:
-        p0, v0 = bb.release_state(P, T, 1.0)
+        p0, v0 = _release(P, T, 1.0)
         np.testing.assert_allclose(p0, tip, atol=2e-5)
         np.testing.assert_allclose(v0, vel, atol=2e-4)
 
@@ -80,7 +90,7 @@ def test_step_cost_reward_and_exact_hit(env_and_params):
     env, P = env_and_params
     action = jnp.array([0.3, -0.2])
     T, delta = bb.action_to_physical(action, P)
-    p0, v0 = bb.release_state(P, T, delta)
+    p0, v0 = _release(P, T, delta)
     target = bb.flight_point(p0, v0, 0.4, G)  # on this throw's own path
     state = bb.BasketballState(target=target, source_action=action, step=jnp.array(0))
     obs, state2, reward, done, info = env.step(jax.random.PRNGKey(0), state, action, P)
@@ -111,10 +121,10 @@ def test_targets_reachable_inside_window_and_spread(env_and_params):
     x0, x1, y0, y1 = P.window
     t = np.asarray(state.target)
     assert np.all((t[:, 0] >= x0) & (t[:, 0] <= x1) & (t[:, 1] >= y0) & (t[:, 1] <= y1))
-    # area-uniform: the far half of the court gets a fair share of targets
-    assert np.mean(t[:, 0] < -4.0) > 0.2
+    # action-uniform: the far half of the court still gets its share of targets
+    assert np.mean(t[:, 0] < -4.0) > 0.05
     # the recorded grid action throws through its target (first 64, to stay fast)
-    _, _, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+    _, _, _, _, info = jax.jit(jax.vmap(env.env.step, in_axes=(0, 0, 0, None)))(
         keys[:64], jax.tree.map(lambda x: x[:64], state), state.source_action[:64], P)
     assert float(jnp.max(info["cost"])) < 1e-6
 
@@ -123,3 +133,12 @@ def test_registry():
     from gvsjax.tasks import registered
     assert "basketball" in registered()
     assert make("basketball").obs_size == 2
+
+
+def test_area_sampling_mode_is_reachable_and_spread():
+    P = bb.make_params(target_sampling="area", n_grid_T=32, n_grid_delta=8)
+    keys = jax.random.split(jax.random.PRNGKey(3), 512)
+    t, source = jax.vmap(bb.sample_target, in_axes=(0, None))(keys, P)
+    assert np.mean(np.asarray(t)[:, 0] < -4.0) > 0.2  # uniform in area: far targets common
+    cost, _ = jax.jit(jax.vmap(bb.throw_cost, in_axes=(None, 0, 0)))(P, source[:32], t[:32])
+    assert float(jnp.max(cost)) < 1e-6
