@@ -13,7 +13,8 @@ With a checkpoint (``runs/<run>/checkpoint.ckpt`` of ``python -m gvsjax.train
 task=pickplace``), the deterministic policy is run on the paper's pair:
 ``pickplace_table1.md`` / ``.json`` (Table I: targets, tips, distances, and
 the actions) and ``pickplace_fig6.png`` (Fig. 6: the arm's shapes every 0.5 s
-over both steps, the joint angle and the tendon tension over the 10 s).
+over both steps, the joint angle and the tendon tension over the 10 s) and,
+when the run folder has ``metrics.csv``, ``pickplace_learning_curve.png``.
 """
 
 from __future__ import annotations
@@ -62,6 +63,31 @@ def reachable_figure(params, path) -> Path:
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return path
+
+
+def learning_curve(metrics_csv, path) -> Path:
+    """Mean reward per step (episode return / 2) and step-2 distance vs episodes."""
+    import csv
+
+    with open(metrics_csv, newline="") as f:
+        rows = list(csv.DictReader(f))
+    ep = np.array([float(r["episodes"]) for r in rows])
+    reward = np.array([float(r["episode_reward"]) for r in rows]) / 2.0
+    dist = np.array([float(r.get("episode_distance", "nan")) for r in rows])
+    wall = np.array([float(r["wall_s"]) for r in rows])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(ep, reward, "tab:blue", label="mean reward per step (stochastic policy)")
+    ax.set_xlabel("episodes")
+    ax.set_ylabel("reward per step", color="tab:blue")
+    ax.set_ylim(0, 1.02)
+    bx = ax.twinx()
+    bx.semilogy(ep, 100 * dist, "tab:red", lw=0.8, label="step-2 distance")
+    bx.set_ylabel("step-2 distance [cm] (stochastic policy)", color="tab:red")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"PPO on pick and place ({ep[-1]:.0f} episodes, {wall[-1]:.0f} s wall incl. setup)")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return Path(path)
 
 
 def policy_episode(ckpt, targets):
@@ -160,6 +186,9 @@ def main(argv: list[str]) -> None:
         table1(params, actions, targets, out)
         print("wrote", out / "pickplace_table1.md", out / "pickplace_table1.json")
         print("wrote", fig6(params, actions, targets, out / "pickplace_fig6.png"))
+        metrics = Path(args["checkpoint"]).parent / "metrics.csv"
+        if metrics.exists():
+            print("wrote", learning_curve(metrics, out / "pickplace_learning_curve.png"))
 
 
 if __name__ == "__main__":
