@@ -24,11 +24,11 @@ import sys
 import time
 from pathlib import Path
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.tasks import pickplace as pp
 
 FRACTIONS = (1.0, 0.5, 0.25, 0.0)
@@ -113,7 +113,7 @@ def main(n_random: str = "16", out: str = "figures") -> None:
         "paper_pair": {"targets": targets[0].tolist(), "tips": r["tips"][0].tolist(),
                        "distances_m": r["distances"][0].tolist(),
                        "theta_final_rad": theta[0].tolist(), "tension_N": tension[0].tolist()},
-        "random_pairs": {"n": int(len(dr)), "max_distance_m": dr.max(0).tolist(),
+        "random_pairs": {"n": len(dr), "max_distance_m": dr.max(0).tolist(),
                          "median_distance_m": np.median(dr, 0).tolist()},
     }
     (out / "baseline_pickplace.json").write_text(json.dumps(result, indent=2))

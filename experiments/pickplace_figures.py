@@ -5,9 +5,10 @@
 Always writes ``pickplace_reachable.png``: the target tables (tips at the end
 of step 1 and step 2 for random actions) in the plane and as radius against
 angle about the joint, with the paper's pair marked: the reachable set is a
-band ~1.5 cm thick just inside the 1 m circle (the arm hangs from its base
-angle; the 0.75 N m tendon moment only trims it), so the paper's targets at
-0.949 m and 0.978 m from the joint are not exactly reachable with this model.
+band 98.6-100 cm from the joint and ~1-2 mm thick at a given angle (the arm
+hangs from its base angle; the 0.75 N m tendon moment only trims it, mostly
+along the band), so the paper's targets at 0.949 m and 0.978 m from the
+joint are not exactly reachable with this model.
 
 With a checkpoint (``runs/<run>/checkpoint.ckpt`` of ``python -m gvsjax.train
 task=pickplace``), the deterministic policy is run on the paper's pair:
@@ -23,16 +24,17 @@ import json
 import sys
 from pathlib import Path
 
-import gvsjax as gv
 import jax
 import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import gvsjax as gv
 
-from gvsjax.tasks import pickplace as pp  # noqa: E402
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from gvsjax.tasks import pickplace as pp
 
 
 def reachable_figure(params, path) -> Path:
@@ -97,8 +99,8 @@ def policy_episode(ckpt, targets):
 
     config, env, params, net = load_policy(ckpt)
     apply_fn = make_network(config, env.action_size).apply
-    policy = lambda o: policy_action(net, apply_fn, o.astype(jnp.float32)).astype(float)  # noqa: E731
-    acts, tips, d, valid = jax.jit(lambda t: pp.rollout(params, policy, t))(jnp.asarray(targets)[None])
+    policy = lambda o: policy_action(net, apply_fn, o.astype(jnp.float32)).astype(float)
+    acts = jax.jit(lambda t: pp.rollout(params, policy, t))(jnp.asarray(targets)[None])[0]
     return params, np.asarray(acts[0])
 
 

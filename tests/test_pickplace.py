@@ -6,12 +6,12 @@ so the module runs in well under a minute.
 
 import math
 
-import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 from gvsjax.tasks import make
 from gvsjax.tasks import pickplace as pp
 
@@ -55,6 +55,9 @@ def test_action_mapping_hand_values(env_and_params):
 
 def test_observation_hand_values(env_and_params):
     _, P = env_and_params
+    band = P.radius_range
+    assert 0.98 < band[0] < band[1] <= 1.0 + 1e-9  # the reachable band hugs the 1 m circle
+    P = P.replace(radius_range=(0.0, math.inf))  # no clipping for the hand values
     state = pp.PickPlaceState(q=jnp.array([math.pi / 2, 0.75, -1.5]), qd=jnp.array([0.0, 0.2, -0.4]),
                               tension=jnp.array(10.0), step=jnp.array(1, jnp.int32),
                               targets=jnp.array([[0.9, -0.4], [-0.7, -0.7]]))
@@ -70,6 +73,9 @@ def test_observation_hand_values(env_and_params):
                                           (math.hypot(0.9, 0.4) - 0.99) / 0.01, 0.0], atol=1e-12)
     upright = pp.target_features(jnp.array([[1e-9, 1.0], [-1e-9, 1.0], [1.0, 0.0]]), P)
     np.testing.assert_allclose(upright[:, 0], [1.0, -1.0, 0.5], atol=1e-8)  # the seam at +-pi
+    # off-band radii are clipped onto the band
+    clipped = pp.target_features(jnp.array([[0.0, -0.5], [0.0, -1.5]]), P.replace(radius_range=(0.985, 1.0)))
+    np.testing.assert_allclose(clipped[:, 1], [-0.5, 1.0], atol=1e-12)
     cart = pp.observe(state, P.replace(target_obs="cartesian"))
     np.testing.assert_allclose(cart[6:8], [-0.7, -0.7], atol=1e-12)
 

@@ -22,7 +22,9 @@ theta / pi, q1 / q_scale, q2 / q_scale, qd / qd_scale (3), the current
 step's target (2), the step indicator (0 pick, 1 place). The target is
 normalised in polar form about the joint (``target_obs="polar"``, default):
 its angle from the hanging direction / pi (the same measure as theta / pi,
-in [-1, 1]) and (|target| - 0.99 m) / 1 cm; ``"cartesian"`` gives
+in [-1, 1]) and (|target| - 0.99 m) / 1 cm, with |target| clipped to the
+table's radius band (so a target off the band, like the paper's, is seen as
+its projection onto the band's edge); ``"cartesian"`` gives
 (x, y) / 1 m instead. Why polar: the angle the joint needs is nearly the
 target's angle, and its range [-pi, pi] has a seam at the upright arm; in
 (x, y) the policy must learn that jump itself, and in training it settled
@@ -36,8 +38,13 @@ ends after step 2. A non-finite state gives ``info["valid"] = False``,
 Reachable targets. The tendon moment is at most 30 N x 2.5 cm = 0.75 N m,
 about 2 % of the gravity moment of a horizontal arm (38.5 N m, gvs-notes
 doubt 6): the arm mostly hangs from its base angle and the tension trims
-the tip by ~1-2 cm. The reachable set is therefore a thin band around a
-closed curve of radius ~0.7-1 m (shorter where the horizontal arm sags).
+the tip by ~1-2 cm, mostly *along* the circle (like a small change of the
+base angle). The reachable set is therefore a thin band hugging the 1 m
+circle: 98.6-100 cm from the joint (the radius dips where the horizontal
+arm sags), only 1.2 mm (median; max 1.6 mm) thick at a given angle
+(measured on the default table). Targets off the band, such as the paper's
+pair (94.9 and 97.8 cm from the joint), cannot be reached exactly: the
+differentiable baseline's best is 4.05 and 1.56 cm.
 At construction ``make_params`` simulates ``n_pairs`` random episodes
 (actions uniform in [-1, 1]^2 for both steps, with the env's own
 ``run_step``) and stores the end-of-step tips: row i is a target pair
@@ -77,6 +84,7 @@ class PickPlaceParams:
     target_scale: float = 1.0  # m, obs ("cartesian"): target / target_scale
     radius_ref: float = 0.99  # m, obs ("polar"): (|target| - radius_ref) / radius_scale
     radius_scale: float = 0.01  # m
+    radius_range: tuple = (0.0, math.inf)  # m, radii clipped to this (make_params: the table's band)
     # "polar": target as (angle from the hanging direction / pi, radial offset), so the
     # +-pi seam of the joint's range is in the input too; "cartesian": (x, y) / target_scale
     target_obs: str = struct.field(pytree_node=False, default="polar")
@@ -121,8 +129,8 @@ def cycloid(u):
 
 def controls(theta0, theta_final, tension0, tension, step_time):
     """The step's laws t -> theta (rad) and t -> tension (N), t in [0, step_time]."""
-    angle = lambda t: theta0 + (theta_final - theta0) * cycloid(t / step_time)  # noqa: E731
-    pull = lambda t: tension0 + (tension - tension0) * cycloid(t / step_time)  # noqa: E731
+    angle = lambda t: theta0 + (theta_final - theta0) * cycloid(t / step_time)
+    pull = lambda t: tension0 + (tension - tension0) * cycloid(t / step_time)
     return angle, pull
 
 
@@ -200,7 +208,9 @@ def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
         if table_key not in _CACHE:
             _CACHE[table_key] = _tables(base, n_pairs, seed)
         tables = _CACHE[table_key]
-    return base.replace(**{k: jnp.asarray(v) for k, v in tables.items()})
+    radii = np.hypot(*np.concatenate([tables["pick"], tables["place"]]).T)
+    band = overrides.get("radius_range", (float(radii.min()), float(radii.max())))
+    return base.replace(radius_range=band, **{k: jnp.asarray(v) for k, v in tables.items()})
 
 
 def row_range(params: PickPlaceParams) -> tuple[int, int]:
@@ -225,7 +235,10 @@ def target_features(target, params: PickPlaceParams):
     if params.target_obs == "cartesian":
         return target / params.target_scale
     angle = jnp.arctan2(target[..., 0], -target[..., 1]) / jnp.pi  # 0 hanging, +-1 upright
-    radius = (jnp.sqrt(jnp.sum(target**2, -1)) - params.radius_ref) / params.radius_scale
+    # an off-band (unreachable) target is seen as its projection onto the band's edge:
+    # the policy never extrapolates in radius (the band is ~1.5 cm wide)
+    r = jnp.clip(jnp.sqrt(jnp.sum(target**2, -1)), *params.radius_range)
+    radius = (r - params.radius_ref) / params.radius_scale
     return jnp.stack([angle, radius], -1)
 
 
@@ -335,7 +348,7 @@ def evaluate(config, params: PickPlaceParams, net_params, out, n_targets: int = 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     apply_fn = make_network(config, 2).apply
-    policy = lambda obs: policy_action(net_params, apply_fn, obs.astype(jnp.float32)).astype(float)  # noqa: E731
+    policy = lambda obs: policy_action(net_params, apply_fn, obs.astype(jnp.float32)).astype(float)
     targets = eval_targets(params, n_targets, seed)
     acts, tips, d, valid = (np.asarray(x) for x in jax.jit(
         lambda t: rollout(params, policy, t))(jnp.asarray(targets)))
