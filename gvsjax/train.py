@@ -103,9 +103,16 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     return run, ppo
 
 
+def task_defaults(task: str) -> dict[str, Any]:
+    """``TASK_DEFAULTS[task]``, else the task module's ``PPO_DEFAULTS`` (if any)."""
+    if task in TASK_DEFAULTS:
+        return TASK_DEFAULTS[task]
+    return dict(getattr(sys.modules[type(make(task)).__module__], "PPO_DEFAULTS", {}))
+
+
 def build_config(task: str, preset: str, overrides: dict[str, Any]) -> PPOConfig:
     """Task defaults, then the preset, then the user's overrides (validated)."""
-    return PPOConfig().replace(**{**TASK_DEFAULTS.get(task, {}), **PRESETS[preset], **overrides})
+    return PPOConfig().replace(**{**task_defaults(task), **PRESETS[preset], **overrides})
 
 
 def config_from_json(d: dict) -> PPOConfig:
@@ -260,9 +267,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         seed = run["eval_seed"] if run["eval_seed"] >= 0 else 1_000_003 + config.seed
         result = evaluate.evaluate_run(ckpt_path, out, n_targets=run["eval_targets"], seed=seed)
         print(evaluate.summary(result))
-    print(f"outputs in {out}/: config.json, metrics.csv, checkpoint.ckpt, timing.json"
-          + (", eval.json, eval_throws.csv, learning_curve.png, error_histogram.png, throw.png"
-             if run["eval_targets"] > 0 else ""))
+    written = sorted(p.name for p in out.iterdir() if p.is_file())
+    print(f"outputs in {out}/: {', '.join(written)}")
     print(f"open {out}/learning_curve.png and {out}/error_histogram.png; "
           f"re-evaluate with: python -m gvsjax.evaluate task={task} checkpoint={ckpt_path}")
     return out
