@@ -269,7 +269,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         print(evaluate.summary(result))
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"outputs in {out}/: {', '.join(written)}")
-    print(f"open {out}/learning_curve.png and {out}/error_histogram.png; "
+    figures = [n for n in written if n.endswith(".png")]
+    print(f"open {', '.join(f'{out}/{n}' for n in figures) or out}; "
           f"re-evaluate with: python -m gvsjax.evaluate task={task} checkpoint={ckpt_path}")
     return out
 
