@@ -54,7 +54,8 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
             lw=1.8, label=f"{window_episodes}-episode moving average")
     ax.set_xlabel("episodes")
     ax.set_ylabel("average reward")
-    ax.set_ylim(0, 1.02)
+    # episode reward is a sum over steps: up to 1 for basketball, 2 for pick and place
+    ax.set_ylim(0, max(1.02, 1.02 * float(np.nanmax(reward[ok])) if ok.any() else 1.02))
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
     ax.set_title("PPO learning curve")
