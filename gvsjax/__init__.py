@@ -12,10 +12,32 @@ import os
 # minutes of compile). The classic emitter handles them well. The flag must be
 # set before JAX creates its CPU backend, so import gvsjax before using JAX.
 _FLAG = "--xla_cpu_use_fusion_emitters=false"
-if _FLAG.split("=")[0] not in os.environ.get("XLA_FLAGS", ""):
+_USER_SET_FLAG = _FLAG.split("=")[0] in os.environ.get("XLA_FLAGS", "")
+if not _USER_SET_FLAG:
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + _FLAG).strip()
 
 import jax  # noqa: E402
+
+
+def _warn_if_backend_started() -> None:
+    try:  # private API: a missing function only means we cannot tell
+        from jax._src import xla_bridge
+
+        started = xla_bridge.backends_are_initialized() and not _USER_SET_FLAG
+    except Exception:  # pragma: no cover
+        return
+    if started:
+        import warnings
+
+        warnings.warn(
+            "gvsjax was imported after JAX started its CPU backend, so the XLA flag "
+            f"{_FLAG} could not take effect: simulations will compile and run far slower. "
+            "Import gvsjax first, or set XLA_FLAGS yourself.",
+            stacklevel=3,
+        )
+
+
+_warn_if_backend_started()
 
 # All physics runs in float64 (gvs-notes 1.4): the throw's release state is
 # sensitive at the 1e-6 level and the Magnus coefficients lose digits in fp32.
