@@ -127,10 +127,6 @@ class Point:
     psi: tuple
 
 
-def _apply_inv(R, p, y):
-    return lie.ad_inv_apply(R, p, y)
-
-
 def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
     """One step g <- g exp(O): update pose, J, eta, psi (gvs-notes section 4)."""
     R, p, J, eta, psi = state
@@ -138,9 +134,9 @@ def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
     for k, col in zip(cols_idx, S_cols):
         J[k] = vadd(J[k], col)
     if with_psi:
-        psi = _apply_inv(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
-    eta = _apply_inv(R_s, p_s, vadd(eta, S_qd))
-    J = [_apply_inv(R_s, p_s, c) for c in J]
+        psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
+    eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
+    J = [lie.ad_inv_apply(R_s, p_s, c) for c in J]
     R, p = lie.compose(R, p, R_s, p_s)
     return R, p, J, eta, psi
 
@@ -207,9 +203,7 @@ def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
 
 
 def _translate(state, offset):
-    R, p, J, eta, psi = state
-    I3 = lie.IDENTITY3
-    return _advance((R, p, J, eta, psi), I3, offset, [], [], zeros(6), zeros(6), True)
+    return _advance(state, lie.IDENTITY3, offset, [], [], zeros(6), zeros(6), True)
 
 
 def _rigid_link(li, link: RigidLink, state, points):

@@ -99,24 +99,6 @@ def as_array(a: Scalar) -> jax.Array:
     return a
 
 
-def barrier(tree: Any) -> Any:
-    """Stop XLA from fusing across this point (traced leaves only).
-
-    Without it XLA fuses the whole recursion into one giant elementwise
-    kernel that compiles for minutes and is not vectorised; cutting it at
-    every Magnus step gives kernels of a few hundred ops that vectorise over
-    the batch.
-    """
-    leaves, treedef = jax.tree_util.tree_flatten(tree)
-    idx = [i for i, x in enumerate(leaves) if isinstance(x, jax.Array)]
-    if not idx:
-        return tree
-    fenced = jax.lax.optimization_barrier([leaves[i] for i in idx])
-    for i, x in zip(idx, fenced):
-        leaves[i] = x
-    return jax.tree_util.tree_unflatten(treedef, leaves)
-
-
 # ----------------------------------------------------------------------------
 # vectors and matrices
 
