@@ -80,7 +80,20 @@ def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=
     """A straight rod clamped at the origin along +x with all six strains active.
 
     order: one polynomial order for every strain, or six (-1 = inactive)."""
+    # --- validation (reliability, issue 6): name rod_3d's own parameters ---
+    for key, value in (("length", length), ("radius", radius), ("youngs_modulus", youngs_modulus),
+                       ("density", density)):
+        positive(key, value)
+    nonnegative("damping", damping)
+    nonnegative("gravity", gravity)
     orders = tuple(order) if isinstance(order, (tuple, list)) else (order,) * 6
+    require(len(orders) == 6 and all(isinstance(o, int) and not isinstance(o, bool) and o >= -1
+                                     for o in orders) and max(orders) >= 0,
+            "order", order, "an int >= 0, or six ints >= -1 (-1 = inactive) with one >= 0")
+    require(isinstance(n_gauss, int) and not isinstance(n_gauss, bool) and n_gauss >= max(orders) + 1,
+            "n_gauss", n_gauss, f"an int >= {max(orders) + 1} (highest order + 1)")
+    require(basis in ("monomial", "legendre"), "basis", basis, "'monomial' or 'legendre'")
+    # --- end validation ---
     link = SoftLink(
         length=length, radius=radius,
         material=Material(youngs_modulus, density, damping, poisson),

@@ -180,6 +180,28 @@ def simulate(
     """
     check_robot(robot)
     n = robot.n_dofs
+    # --- argument checks (reliability, issue 6): types and shapes, before any tracing ---
+    require(isinstance(integrator, str), "integrator", integrator, f"one of {sorted(integrators.INTEGRATORS)}")
+    for name, value in (("duration", duration), ("dt", dt)):
+        if value is not None and concrete(value):
+            require(not isinstance(value, (bool, str, bytes)) and np.ndim(value) == 0
+                    and np.issubdtype(np.asarray(value).dtype, np.number), name, value, "a scalar time (s)")
+    for name, value in (("n_steps", n_steps), ("save_every", save_every)):
+        require(value is None or not isinstance(value, (bool, np.bool_)), name, value, "an int >= 1")
+    for name, fn, sizes in (("base_angle", base_angle, (1,)), ("joint_motion", joint_motion,
+                            (len(robot.prescribed),)), ("tendon_force", tendon_force, (1, len(robot.tendons)))):
+        if callable(fn):  # abstract evaluation only: catches a wrong output shape without compiling
+            out = jax.eval_shape(fn, jnp.zeros((), dtype=float))
+            size = math.prod(getattr(out, "shape", (None,)))
+            allowed = " or ".join(map(str, sorted(set(sizes))))
+            require(size in sizes, name, fn, f"a callable t -> {allowed} value(s); "
+                    f"it returns shape {getattr(out, 'shape', type(out).__name__)}")
+    if tendon_force is not None and not callable(tendon_force) and concrete(tendon_force):
+        try:
+            np.asarray(tendon_force, dtype=float)
+        except (TypeError, ValueError):
+            require(False, "tendon_force", tendon_force, "a tension >= 0 N (one per tendon), or a callable")
+    # --- end argument checks ---
     integrators.get(integrator)
     n_steps, dt = _steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
@@ -267,7 +289,10 @@ def _initial(x, n: int, name: str):
     if x is None:
         return np.zeros(n)
     if concrete(x):
-        arr = np.asarray(x, dtype=float)
+        try:  # (issue 6) a ragged or non-numeric q0/qd0 is named, not a numpy error
+            arr = np.asarray(x, dtype=float)
+        except (TypeError, ValueError):
+            require(False, name, x, f"an array of {n} numbers")
         require(arr.shape == (n,), name, x, f"an array of shape ({n},)")
         require(bool(np.all(np.isfinite(arr))), name, x, "finite values")
         return arr

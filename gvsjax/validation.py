@@ -21,22 +21,42 @@ def require(ok: bool, name: str, value: Any, allowed: str) -> None:
         raise ValueError(f"{name}={shown!r} is invalid: expected {allowed}")
 
 
-def positive(name: str, value: Any) -> None:
-    if concrete(value):
+def _numbers(name: str, value: Any, shape: tuple | None) -> np.ndarray:
+    """``value`` as a float array of ``shape`` (None: any), else a ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:
+        require(False, name, value, "a number" if shape in (None, ()) else f"numbers, shape {shape}")
+    try:
         v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        require(False, name, value, "a number" if shape in (None, ()) else f"numbers, shape {shape}")
+    require(v.size >= 1, name, value, "a number")
+    if shape is not None:
+        require(v.shape == shape, name, value, "a scalar" if shape == () else f"an array of shape {shape}")
+    return v
+
+
+def positive(name: str, value: Any, shape: tuple | None = None) -> None:
+    if concrete(value):
+        v = _numbers(name, value, shape)
         require(bool(np.all(np.isfinite(v)) and np.all(v > 0)), name, value, "a finite number > 0")
 
 
-def nonnegative(name: str, value: Any) -> None:
+def nonnegative(name: str, value: Any, shape: tuple | None = None) -> None:
     if concrete(value):
-        v = np.asarray(value, dtype=float)
+        v = _numbers(name, value, shape)
         require(bool(np.all(np.isfinite(v)) and np.all(v >= 0)), name, value, "a finite number >= 0")
 
 
-def finite(name: str, value: Any) -> None:
+def finite(name: str, value: Any, shape: tuple | None = None) -> None:
     if concrete(value):
-        v = np.asarray(value, dtype=float)
+        v = _numbers(name, value, shape)
         require(bool(np.all(np.isfinite(v))), name, value, "a finite number")
+
+
+def integer(name: str, value: Any, low: int = 1) -> None:
+    """An int (not a bool) >= ``low``."""
+    require(isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+            and value >= low, name, value, f"an int >= {low}")
 
 
 def check_robot(robot) -> None:
@@ -53,17 +73,17 @@ def check_robot(robot) -> None:
             positive(f"links[{i}].material.density", link.material.density)
             nonnegative(f"links[{i}].material.damping", link.material.damping)
             if concrete(link.material.poisson):
-                nu = float(link.material.poisson)
+                nu = float(_numbers(f"links[{i}].material.poisson", link.material.poisson, ()))
                 require(-1.0 < nu <= 0.5, f"links[{i}].material.poisson", nu, "a ratio in (-1, 0.5]")
-            require(isinstance(link.n_gauss, int) and link.n_gauss >= 1, f"links[{i}].n_gauss",
-                    link.n_gauss, "an int >= 1")
+            integer(f"links[{i}].n_gauss", link.n_gauss)
             top = max(link.basis.orders)
             require(link.n_gauss >= top + 1, f"links[{i}].n_gauss", link.n_gauss,
                     f">= {top + 1} (highest basis order + 1), else K is under-integrated")
         elif isinstance(link, RigidLink):
             positive(f"links[{i}].mass", link.mass)
-            positive(f"links[{i}].inertia", np.asarray(link.inertia) if concrete(link.inertia) else link.inertia)
+            positive(f"links[{i}].inertia", link.inertia)
             nonnegative(f"links[{i}].length", link.length)
+            finite(f"links[{i}].com", link.com)
         else:
             raise ValueError(f"links[{i}]={type(link).__name__} is invalid: expected SoftLink or RigidLink")
     n = len(robot.links)

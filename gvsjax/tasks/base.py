@@ -17,8 +17,15 @@ Conventions (fixed for all gvsjax tasks):
   build ``terminated, truncated = done, info["truncated"]`` explicitly.
 * Actions live in ``[-1, 1]^action_size``; a task maps them affinely to
   physical quantities and clips out-of-range values.
-* ``info["valid"]`` is False when the physics diverged (NaN/inf); such a step
+* ``info["valid"]`` is False when the physics diverged (NaN/inf, or a state
+  beyond the task's documented magnitude bound, see ``bounded``); such a step
   ends the episode and its reward must not be used for learning.
+* Non-finite actions (policy: ``sanitize_action``): an action with any NaN or
+  inf entry is replaced by 0, the centre of the action box, the step is
+  simulated with it and flagged ``info["valid"] = False`` (so it ends the
+  episode and PPO masks it out). Inside ``jit`` nothing can be raised on a
+  value, and a flag keeps a batch of episodes running. A wrong action *shape*
+  is known while tracing and raises ``ValueError`` before anything compiles.
 """
 
 from __future__ import annotations
@@ -46,6 +53,27 @@ class Environment(Protocol):
     def step(
         self, key: jax.Array, state: PyTree, action: jax.Array, params: PyTree
     ) -> tuple[jax.Array, PyTree, jax.Array, jax.Array, dict[str, jax.Array]]: ...
+
+
+def sanitize_action(action: jax.Array, size: int | None = None) -> tuple[jax.Array, jax.Array]:
+    """``(action, finite)``: the action with every entry replaced by 0 when any is NaN/inf.
+
+    ``finite`` is a bool scalar; a task ANDs it into ``info["valid"]``. ``size``
+    (the task's ``action_size``) checks the shape at trace time: ``(size,)``.
+    """
+    action = jnp.asarray(action)
+    if size is not None and action.shape != (size,):
+        raise ValueError(f"action has shape {action.shape} (dtype {action.dtype}); expected ({size},) "
+                         "per environment (vmap over a batch)")
+    if not jnp.issubdtype(action.dtype, jnp.floating):
+        action = action.astype(float)
+    finite = jnp.all(jnp.isfinite(action))
+    return jnp.where(finite, action, jnp.zeros_like(action)), finite
+
+
+def bounded(x: jax.Array, bound: float) -> jax.Array:
+    """True when every entry of ``x`` is finite and ``|x| <= bound`` (NaN compares False)."""
+    return jnp.all(jnp.abs(x) <= bound)
 
 
 def auto_reset_step(env: Environment) -> Callable:

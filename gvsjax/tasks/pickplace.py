@@ -65,7 +65,7 @@ import numpy as np
 from flax import struct
 
 import gvsjax as gv
-from gvsjax.tasks.base import register
+from gvsjax.tasks.base import bounded, register, sanitize_action
 
 PAPER_PAIR = ((0.884, -0.344), (-0.675, -0.707))  # m, Table I targets
 
@@ -280,13 +280,23 @@ class PickPlace:
         """Task-specific evaluation hook (see the module-level ``evaluate``)."""
         return evaluate(config, params, net_params, out, n_targets, seed)
 
+    # --- reliability (issue 6): divergence bounds on the end-of-step state. |q1|, |q2| <= 20
+    # (= L / r: beyond it the curvature can exceed 1 / radius, the inner fibre would have
+    # negative length) and |qd| <= 100 (rad/s, 1/s); 512 random-action episodes peak at
+    # 1.4 and 2.7 (measured), so only a blowing-up integration crosses them.
+    q_bound = 20.0
+    qd_bound = 100.0
+
     def step(self, key, state: PickPlaceState, action, params: PickPlaceParams):
+        action, finite = sanitize_action(action, self.action_size)  # NaN/inf -> 0, flagged invalid
         theta_f, tension = action_to_physical(action, params)
         tr = run_step(params, state.q, state.qd, state.tension, theta_f, tension)
         q, qd, tip = tr.q[-1], tr.qd[-1], tr.tip[-1, :2]
         i = jnp.minimum(state.step, 1)
         d = jnp.sqrt(jnp.sum((tip - state.targets[i]) ** 2))
-        valid = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(qd)) & jnp.isfinite(d)
+        valid = (finite & jnp.all(jnp.isfinite(q)) & bounded(q[1:], self.q_bound)
+                 & bounded(qd, self.qd_bound) & jnp.isfinite(d))
+        # --- end reliability edit ---
         reward = jnp.where(valid, reward_of(jnp.where(valid, d, 0.0), params), 0.0)
         new = state.replace(q=jnp.where(valid, q, 0.0), qd=jnp.where(valid, qd, 0.0),
                             tension=tension, step=state.step + 1)
