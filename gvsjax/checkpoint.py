@@ -82,34 +82,68 @@ def save(path, train_state, config: dict, task: str, step: int, extra: dict | No
 def load_raw(path) -> dict:
     """The checked payload: ``{"train_state": bytes, "config", "task", "step", "extra"}``."""
     path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"checkpoint {str(path)!r} is a directory, not a checkpoint file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise CheckpointError(f"checkpoint {str(path)!r} cannot be read: {e}") from None
+    bad = CheckpointError(
+        f"checkpoint {str(path)!r} is truncated, corrupted or not a {FORMAT} file ({len(data)} bytes)"
+    )
     try:
         outer = serialization.msgpack_restore(data)
-        ok = isinstance(outer, dict) and outer.get("format") == FORMAT
     except Exception:  # msgpack raises several types on truncated input
-        ok = False
-    if not ok:
-        raise CheckpointError(
-            f"checkpoint {str(path)!r} is truncated, corrupted or not a {FORMAT} file "
-            f"({len(data)} bytes)"
-        )
+        raise bad from None
+    if not (isinstance(outer, dict) and outer.get("format") == FORMAT
+            and isinstance(outer.get("payload"), bytes) and isinstance(outer.get("sha256"), str)):
+        raise bad
     if hashlib.sha256(outer["payload"]).hexdigest() != outer["sha256"]:
         raise CheckpointError(f"checkpoint {str(path)!r} is corrupted: checksum mismatch")
-    raw = serialization.msgpack_restore(outer["payload"])
-    raw["config"], raw["extra"] = json.loads(raw["config"]), json.loads(raw["extra"])
+    try:  # the checksum matched: only a writer bug could make the rest fail
+        raw = serialization.msgpack_restore(outer["payload"])
+        raw["config"], raw["extra"] = json.loads(raw["config"]), json.loads(raw["extra"])
+        ok = (isinstance(raw["train_state"], bytes) and isinstance(raw["config"], dict)
+              and isinstance(raw["task"], str) and isinstance(raw["step"], int))
+    except Exception:
+        ok = False
+    if not ok:
+        raise CheckpointError(f"checkpoint {str(path)!r} has a malformed payload")
     return raw
 
 
 def restore_state(template, state_bytes: bytes):
-    """Fill ``template`` (a pytree of the right structure) from saved state bytes."""
-    restored = serialization.from_bytes(_raw(template), state_bytes)
+    """Fill ``template`` (a pytree of the right structure) from saved state bytes.
+
+    A saved state of another structure or shape (e.g. another ``num_envs`` or
+    network size) raises ``CheckpointError`` instead of loading a mix.
+    """
+    try:
+        restored = serialization.from_bytes(_raw(template), state_bytes)
+    except Exception as e:  # flax raises ValueError/KeyError on a structure mismatch
+        raise CheckpointError(f"the checkpoint's state does not match this configuration: {e}") from None
+    for (where, t), r in zip(jax.tree_util.tree_leaves_with_path(_raw(template)), jax.tree.leaves(restored)):
+        if jnp.shape(t) != jnp.shape(r):
+            raise CheckpointError(
+                f"the checkpoint's state does not match this configuration: "
+                f"{jax.tree_util.keystr(where)} has shape {jnp.shape(r)}, expected {jnp.shape(t)}"
+            )
     return jax.tree.map(
         lambda t, r: jax.random.wrap_key_data(r, impl=jax.random.key_impl(t))
         if _is_typed_key(t) else jnp.asarray(r, dtype=jnp.asarray(t).dtype),
         template, restored,
     )
+
+
+def remove_stale_temps(path) -> list[Path]:
+    """Delete temp files a killed ``write_atomic`` left next to ``path``; returns them."""
+    path = Path(path)
+    stale = sorted(path.parent.glob(f".{path.name}.*.tmp"))
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
 
 
 def load(path, template) -> tuple[Any, dict]:

@@ -37,12 +37,12 @@ def load_policy(ckpt_path):
     from gvsjax.train import config_from_json
 
     meta = checkpoint.load_raw(ckpt_path)
-    config = config_from_json({k: v for k, v in meta["config"].items() if k != "task"})
+    config = config_from_json(meta["config"], f"the config saved in {ckpt_path}")
     env = make(meta["task"])
     env_params = env.default_params()
     template = jax.eval_shape(lambda: init(config, env, env_params, jax.random.PRNGKey(0)))
     template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template)
-    state = checkpoint.restore_state(template, meta["train_state"])
+    state = checkpoint.restore_state(template, meta["train_state"])  # CheckpointError if mismatched
     return config, env, env_params, state.params
 
 
@@ -143,7 +143,9 @@ def parse_args(argv: list[str]) -> dict:
     if args["task"] not in registered():
         raise ValueError(f"task={args['task']!r} is unknown; choose one of {registered()}")
     if args["n_targets"] < 1:
-        raise ValueError("n_targets must be >= 1")
+        raise ValueError(f"n_targets={args['n_targets']} is invalid; expected an int >= 1")
+    if args["seed"] < -1:
+        raise ValueError(f"seed={args['seed']} is invalid; expected an int >= 0 (or -1: 1_000_003)")
     return args
 
 

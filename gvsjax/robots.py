@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 from gvsjax.model import Joint, Material, PointLoad, PointMass, Robot, SoftLink, StrainBasis, Tendon
-from gvsjax.validation import check_robot, finite, nonnegative, positive, require
+from gvsjax.validation import check_robot, concrete, finite, nonnegative, positive, require
 
 # At joint angle 0 the rod's local x axis points along world -y (hanging).
 HANGING = ((0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
@@ -53,6 +53,9 @@ def paper_arm(**overrides: Any) -> Robot:
     tendons = ()
     if p["tendon_offset"] is not None:
         finite("tendon_offset", p["tendon_offset"])
+        if concrete(p["tendon_offset"]) and concrete(p["radius"]):  # (issue 6) the user's name
+            require(abs(float(p["tendon_offset"])) <= float(p["radius"]), "tendon_offset", p["tendon_offset"],
+                    f"|tendon_offset| <= radius={float(p['radius'])} m (the tendon runs inside the rod)")
         tendons = (Tendon(offset=p["tendon_offset"], link=0, direction=(1.0, 0.0)),)
     link = SoftLink(
         length=p["length"],

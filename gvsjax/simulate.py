@@ -181,18 +181,21 @@ def simulate(
     check_robot(robot)
     n = robot.n_dofs
     # --- argument checks (reliability, issue 6): types and shapes, before any tracing ---
-    require(isinstance(integrator, str), "integrator", integrator, f"one of {sorted(integrators.INTEGRATORS)}")
+    require(isinstance(integrator, str), "integrator", integrator,
+            f"one of {sorted(integrators.INTEGRATORS)}")
     for name, value in (("duration", duration), ("dt", dt)):
-        if value is not None and concrete(value):
+        if (value is not None or name == "duration") and concrete(value):
             require(not isinstance(value, (bool, str, bytes)) and np.ndim(value) == 0
                     and np.issubdtype(np.asarray(value).dtype, np.number), name, value, "a scalar time (s)")
     for name, value in (("n_steps", n_steps), ("save_every", save_every)):
         require(value is None or not isinstance(value, (bool, np.bool_)), name, value, "an int >= 1")
-    for name, fn, sizes in (("base_angle", base_angle, (1,)), ("joint_motion", joint_motion,
-                            (len(robot.prescribed),)), ("tendon_force", tendon_force, (1, len(robot.tendons)))):
+    laws = (("base_angle", base_angle, (1,)), ("joint_motion", joint_motion, (len(robot.prescribed),)),
+            ("tendon_force", tendon_force, (1, len(robot.tendons))))
+    for name, fn, sizes in laws:
         if callable(fn):  # abstract evaluation only: catches a wrong output shape without compiling
-            out = jax.eval_shape(fn, jnp.zeros((), dtype=float))
-            size = math.prod(getattr(out, "shape", (None,)))
+            out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), jnp.float64 if jax.config.x64_enabled
+                                                          else jnp.float32))
+            size = math.prod(out.shape) if hasattr(out, "shape") else None
             allowed = " or ".join(map(str, sorted(set(sizes))))
             require(size in sizes, name, fn, f"a callable t -> {allowed} value(s); "
                     f"it returns shape {getattr(out, 'shape', type(out).__name__)}")

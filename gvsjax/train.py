@@ -12,7 +12,17 @@ the evaluation of ``gvsjax.evaluate`` (``eval.json``, ``eval_throws.csv``, PNG
 figures). ``resume=true out=DIR`` continues the run in DIR from its last
 checkpoint (optimizer state, PRNG key and update counter included); command
 line overrides then apply on top of the saved config (e.g. a larger
-``total_episodes``).
+``total_episodes``); the keys that fix the saved state's shapes or meaning
+(``RESUME_FIXED``) cannot change.
+
+Reliability: after every jitted call the losses, the other optimisation metrics
+and the network weights must be finite; otherwise training stops (exit code 3)
+with a message naming the metric and the update, after saving the last good
+state (the one before that call) as the checkpoint, so nothing non-finite is
+ever saved. A resumed run continues bit-identically to an uninterrupted one
+(same metrics.csv apart from ``wall_s``): the whole ``TrainState`` (weights,
+Adam moments, PRNG key, update and episode counters, env states) is
+checkpointed, and rows of ``metrics.csv`` past the checkpoint are dropped.
 """
 
 from __future__ import annotations
@@ -64,7 +74,23 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "eval_targets": (1000, "targets of the final evaluation (0 skips it)"),
     "eval_seed": (-1, "seed of the final evaluation's targets (-1: 1_000_003 + seed)"),
     "progress": (True, "show a tqdm progress bar"),
+    "updates_per_call": (0, "PPO updates per jitted call (0: ~8k episodes per call); "
+                            "checkpoints and the finiteness check happen between calls"),
 }
+# Config keys that fix the shapes or the meaning of a saved TrainState.
+RESUME_FIXED = ("seed", "num_envs", "network", "shared_hidden", "actor_hidden", "critic_hidden",
+                "activation", "std_mode")
+# Allowed ranges of the numeric run options: (check, text).
+_RUN_RANGES: dict[str, tuple[Any, str]] = {
+    "checkpoint_every": (lambda v: v >= 0, "seconds >= 0 (0: after every call; inf: only at the end)"),
+    "eval_targets": (lambda v: v >= 0, "an int >= 0"),
+    "eval_seed": (lambda v: v >= -1, "an int >= -1"),
+    "updates_per_call": (lambda v: v >= 0, "an int >= 0"),
+}
+
+
+class TrainingDiverged(RuntimeError):
+    """A loss, an optimisation metric or the weights became NaN/inf."""
 
 
 def _parse_run(key: str, text: str) -> Any:
@@ -76,9 +102,12 @@ def _parse_run(key: str, text: str) -> Any:
             if text.lower() in ("0", "false", "no", "off"):
                 return False
             raise ValueError
-        return type(default)(text)
+        value = type(default)(text)
     except ValueError:
         raise ValueError(f"{key}={text!r} is invalid; expected {type(default).__name__}") from None
+    if key in _RUN_RANGES and not _RUN_RANGES[key][0](value):  # NaN fails every comparison
+        raise ValueError(f"{key}={text!r} is invalid; expected {_RUN_RANGES[key][1]}")
+    return value
 
 
 def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -100,6 +129,8 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
         raise ValueError(f"task={run['task']!r} is unknown; choose one of {registered()}")
     if run["preset"] not in PRESETS:
         raise ValueError(f"preset={run['preset']!r} is unknown; choose one of {sorted(PRESETS)}")
+    if run["resume"] and not run["out"]:
+        raise ValueError("resume=true needs out=<run folder> (the folder holding checkpoint.ckpt)")
     return run, ppo
 
 
@@ -115,10 +146,20 @@ def build_config(task: str, preset: str, overrides: dict[str, Any]) -> PPOConfig
     return PPOConfig().replace(**{**task_defaults(task), **PRESETS[preset], **overrides})
 
 
-def config_from_json(d: dict) -> PPOConfig:
-    """PPOConfig from a saved dict (extra keys such as ``task`` are ignored)."""
+def config_from_json(d: dict, source: str = "config") -> PPOConfig:
+    """PPOConfig from a saved dict (``task`` and ``preset`` are ignored; other
+    unknown keys and invalid values raise ValueError naming ``source``)."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{source} is invalid: expected a JSON object of PPOConfig fields, "
+                         f"got {type(d).__name__}")
+    unknown = sorted(set(d) - set(FIELD_DOCS) - {"task", "preset"})
+    if unknown:
+        raise ValueError(f"{source} has unknown key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
     d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in FIELD_DOCS}
-    return PPOConfig(**d)
+    try:
+        return PPOConfig(**d)
+    except ValueError as e:
+        raise ValueError(f"{source} is invalid: {e}") from None
 
 
 _STEP_CACHE: dict[tuple, Any] = {}  # jitted update functions, reused within one process
@@ -148,10 +189,13 @@ class MetricsLog:
         self.columns: list[str] | None = None
         if resume_update is not None and self.path.exists():
             with open(self.path, newline="") as f:  # drop rows past the checkpoint
-                rows = list(csv.DictReader(f))
+                text = f.read()
+            if not text.endswith("\n"):  # a row cut short by a kill is dropped whole
+                text = text[: text.rfind("\n") + 1]
+            rows = list(csv.DictReader(text.splitlines()))
             if rows:
                 self.columns = list(rows[0].keys())
-                rows = [r for r in rows if int(r["update"]) < resume_update]
+                rows = [r for r in rows if None not in r.values() and _int(r["update"]) < resume_update]
                 with open(self.path, "w", newline="") as f:
                     w = csv.DictWriter(f, self.columns)
                     w.writeheader()
@@ -178,6 +222,14 @@ class MetricsLog:
             self.tb.flush()
 
 
+def _int(text: str) -> float:
+    """An int from a CSV cell; inf (dropped) when garbled."""
+    try:
+        return int(text)
+    except (TypeError, ValueError):
+        return math.inf
+
+
 def _tensorboard(out: Path):
     for module in ("tensorboardX", "torch.utils.tensorboard"):
         try:
@@ -200,6 +252,29 @@ def _rows(metrics: dict, wall: float) -> list[dict[str, float]]:
     return rows
 
 
+def non_finite(rows: list[dict[str, float]], state) -> str | None:
+    """What became NaN/inf in a call's metric rows or the new weights/optimizer state, else None.
+
+    Checked: every loss/optimisation metric, and ``episode_reward`` when an
+    episode completed. Not checked: the other ``episode_<info>`` means (NaN
+    whenever no episode ended in the rollout; diagnostics, not learned from).
+    """
+    for r in rows:
+        for k, v in r.items():
+            if k.startswith("episode_") and (k != "episode_reward" or r.get("episodes_completed", 0) == 0):
+                continue
+            if not math.isfinite(v):
+                return f"metric {k}={v} at update {int(r['update'])}"
+    for name in ("params", "opt_state"):
+        leaves = jax.tree_util.tree_leaves_with_path(getattr(state, name))
+        for where, x in leaves:
+            x = np.asarray(x)
+            if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
+                where = jax.tree_util.keystr(where)
+                return f"{name}{where} became non-finite by update {int(state.update) - 1}"
+    return None
+
+
 def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     """Run (or resume) training; returns the run folder."""
     task = run["task"]
@@ -210,7 +285,16 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         if not run["out"]:
             raise ValueError("resume=true needs out=<run folder>")
         meta = checkpoint.load_raw(ckpt_path)
-        config = config_from_json(meta["config"]).replace(**overrides)
+        if meta["task"] != task:
+            raise ValueError(f"resume: {ckpt_path} is a task={meta['task']!r} run; pass task={meta['task']}")
+        checkpoint.remove_stale_temps(ckpt_path)  # left by a write the kill interrupted
+        saved = config_from_json(meta["config"], f"the config saved in {ckpt_path}")
+        for key in RESUME_FIXED:
+            if key in overrides and overrides[key] != getattr(saved, key):
+                raise ValueError(f"resume: {key}={overrides[key]!r} differs from the checkpoint's "
+                                 f"{getattr(saved, key)!r}; it cannot change on resume "
+                                 "(it fixes the saved state); start a new run instead")
+        config = saved.replace(**overrides)
     else:
         config = build_config(task, run["preset"], overrides)
     out.mkdir(parents=True, exist_ok=True)
@@ -224,7 +308,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         state = checkpoint.restore_state(state, meta["train_state"])
     total = num_updates(config, env.episode_length)
     # ~8k episodes per jitted call: a responsive bar without Python overhead per update
-    per_call = max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
+    per_call = run.get("updates_per_call") or max(
+        1, min(total, 8192 // (config.num_envs * config.num_steps)))
     step_fn = _update_fn(task, config, env, env_params, per_call)
     log = MetricsLog(out, int(state.update) if run["resume"] else None)
     setup_s = time.perf_counter() - t0
@@ -236,23 +321,37 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
     config_dict = {"task": task, **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
+    saved_update = int(state.update) if run["resume"] else None
     while int(state.update) < total:
         t_call = time.perf_counter()
+        good = state  # finite (checked below, or fresh/restored); kept in case this call diverges
         state, metrics = step_fn(state)
         jax.block_until_ready(state)
         if compile_s is None:
             compile_s = time.perf_counter() - t_call  # first call: compile + run
         rows = _rows(metrics, time.perf_counter() - t0)
         log.write(rows)
+        problem = non_finite(rows, state)
+        if problem is not None:
+            if bar is not None:
+                bar.close()
+            if saved_update != int(good.update):
+                checkpoint.save(ckpt_path, good, config_dict, task, int(good.update))
+            raise TrainingDiverged(
+                f"training stopped: {problem}. Nothing non-finite was saved: {ckpt_path} holds the "
+                f"last good state (update {int(good.update)} of {total}); metrics.csv has the rows up "
+                f"to the failure. Resume from it with a smaller learning_rate or max_grad_norm: "
+                f"python -m gvsjax.train task={task} out={out} resume=true learning_rate=...")
         if bar is not None and rows:
             bar.n = min(rows[-1]["episodes"], config.total_episodes)
             bar.set_postfix(reward=f"{np.nanmean([r['episode_reward'] for r in rows]):.3f}",
                             cost_cm=f"{100 * np.nanmean([r.get('episode_cost', np.nan) for r in rows]):.1f}")
             bar.refresh()
-        if time.perf_counter() - last_save > run["checkpoint_every"]:
+        if time.perf_counter() - last_save >= run["checkpoint_every"]:
             checkpoint.save(ckpt_path, state, config_dict, task, int(state.update))
-            last_save = time.perf_counter()
-    checkpoint.save(ckpt_path, state, config_dict, task, int(state.update))
+            last_save, saved_update = time.perf_counter(), int(state.update)
+    if saved_update != int(state.update):
+        checkpoint.save(ckpt_path, state, config_dict, task, int(state.update))
     if bar is not None:
         bar.close()
     train_s = time.perf_counter() - t_train
@@ -286,6 +385,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, checkpoint.CheckpointError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except TrainingDiverged as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 3
     return 0
 
 

@@ -1,0 +1,347 @@
+"""Reliability: bad input, non-finite actions and states, non-finite losses,
+killed and resumed runs, determinism (issue 6).
+
+The generated bad inputs must fail *before* anything is traced or compiled:
+``no_compile`` counts XLA compilations around them (jax.monitoring) and must
+see none. The subprocess tests share one killed/resumed run (module fixture).
+"""
+
+import gvsjax as gv  # noqa: I001  (first: it configures JAX)
+import csv
+import importlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gvsjax import checkpoint, train
+from gvsjax.ppo import FIELD_DOCS
+from gvsjax.tasks import base
+from gvsjax.tasks import pickplace as pp
+
+FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+_COMPILES = [0]
+
+
+def _on_event(event, duration, **kwargs):
+    if event == "/jax/core/compile/backend_compile_duration":
+        _COMPILES[0] += 1
+
+
+jax.monitoring.register_event_duration_secs_listener(_on_event)
+
+
+@contextmanager
+def no_compile():
+    """Fail if XLA compiles anything inside the block."""
+    before = _COMPILES[0]
+    yield
+    assert _COMPILES[0] == before, f"{_COMPILES[0] - before} compilation(s) before the error"
+
+
+def raises_naming(name, fn, *args, exc=ValueError, **kwargs):
+    """``fn(*args, **kwargs)`` raises ``exc`` whose message contains ``name``; no compilation."""
+    with no_compile(), pytest.raises(exc) as info:
+        fn(*args, **kwargs)
+    assert name in str(info.value), f"{name!r} not in {str(info.value)!r}"
+    return str(info.value)
+
+
+# ----------------------------------------------------------------------------- value strategies
+
+nan_inf = st.sampled_from([math.nan, math.inf, -math.inf])
+not_a_number = st.one_of(st.text(max_size=5), st.none(), st.booleans(), st.just([]),
+                         st.just({"a": 1}), st.just(object()))
+not_positive = st.one_of(st.floats(max_value=0.0, allow_nan=False), st.integers(max_value=0), nan_inf,
+                         not_a_number)
+negative = st.one_of(st.floats(max_value=-1e-12, allow_nan=False), st.integers(max_value=-1),
+                     st.just(math.nan), st.just(math.inf), not_a_number)
+not_finite = st.one_of(nan_inf, not_a_number)
+bad_count = st.one_of(st.integers(max_value=0), st.floats(allow_nan=True), st.booleans(),
+                      st.text(max_size=3), st.none())
+
+ARM_BAD = {
+    **{k: not_positive for k in ("length", "radius", "youngs_modulus", "density")},
+    **{k: negative for k in ("damping", "gravity", "tip_mass")},
+    "tip_force": not_finite,
+    "n_modes": bad_count,
+    "n_gauss": bad_count,
+    "basis": st.one_of(st.text(max_size=8).filter(lambda s: s not in ("monomial", "legendre")),
+                       st.integers(), st.none()),
+    "poisson": st.one_of(st.floats(min_value=0.5, exclude_min=True, allow_nan=False),
+                         st.floats(max_value=-1.0, allow_nan=False), st.just(math.nan), not_a_number),
+    "tendon_offset": st.one_of(st.floats(min_value=0.0501, allow_nan=False, allow_infinity=False),
+                               st.floats(max_value=-0.0501, allow_nan=False, allow_infinity=False),
+                               nan_inf, not_a_number.filter(lambda v: v is not None)),
+}
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(ARM_BAD)))
+def test_paper_arm_overrides_invalid(data, name):
+    value = data.draw(ARM_BAD[name], label=name)
+    raises_naming(name, gv.paper_arm, **{name: value})
+
+
+@FAST
+@given(key=st.text("abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12).filter(
+    lambda k: k not in gv.PAPER_ARM))
+def test_paper_arm_unknown_override_lists_the_valid_keys(key):
+    message = raises_naming(key, gv.paper_arm, **{key: 1.0})
+    assert "youngs_modulus" in message
+
+
+ROD_BAD = {
+    **{k: not_positive for k in ("length", "radius", "youngs_modulus", "density")},
+    **{k: negative for k in ("damping", "gravity")},
+    "order": st.one_of(st.integers(max_value=-1), st.floats(), st.booleans(),
+                       st.lists(st.integers(-1, 3), max_size=5),  # not six entries
+                       st.just((-1,) * 6), st.just((0, 1, 2, 3, 4, -2))),
+    "n_gauss": st.one_of(st.integers(max_value=1), st.floats(), st.booleans(), st.none()),
+    "basis": st.text(max_size=8).filter(lambda s: s not in ("monomial", "legendre")),
+}
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(ROD_BAD)))
+def test_rod_3d_invalid(data, name):
+    value = data.draw(ROD_BAD[name], label=name)
+    raises_naming(name, gv.rod_3d, **{name: value})
+
+
+ARM = gv.paper_arm()  # q = (theta, q1, q2)
+TENDON_ARM = gv.paper_arm(tendon_offset=0.025)
+
+# Each entry: strategy of (simulate kwargs) that is invalid because of the named argument.
+SIM_BAD = {
+    "duration": st.builds(lambda d: dict(duration=d, dt=1e-3), not_positive),
+    "dt": st.builds(lambda d: dict(duration=1.0, dt=d), st.one_of(
+        not_positive.filter(lambda v: v is not None),  # dt=None is "give n_steps"
+        st.floats(min_value=1e-4, max_value=0.5).filter(lambda d: abs(round(1 / d) * d - 1) > 1e-6))),
+    "n_steps": st.builds(lambda k: dict(duration=1.0, n_steps=k), bad_count.filter(lambda v: v is not None)),
+    "integrator": st.builds(lambda i: dict(duration=1.0, dt=1e-3, integrator=i),
+                            st.one_of(st.text(max_size=6).filter(lambda s: s not in ("rk4", "euler", "imex",
+                                                                                     "midpoint")),
+                                      st.integers(), st.just(["rk4"]), st.none())),
+    "save_every": st.builds(lambda k: dict(duration=1.0, dt=1e-3, save_every=k), st.one_of(
+        st.integers(max_value=0), st.integers(1, 999).filter(lambda k: 1000 % k), st.booleans(),
+        st.floats(), st.none())),
+    "q0": st.builds(lambda q: dict(duration=1.0, dt=1e-3, q0=q), st.one_of(
+        st.integers(0, 6).filter(lambda n: n != 3).map(np.zeros),
+        st.just(np.zeros((3, 1))), st.just([0.0, math.nan, 0.0]), st.just([0.0, 0.0, math.inf]),
+        st.just("abc"), st.just([[0.0], [1.0, 2.0]]))),
+    "qd0": st.builds(lambda q: dict(duration=1.0, dt=1e-3, qd0=q), st.one_of(
+        st.integers(0, 6).filter(lambda n: n != 3).map(np.ones), st.just([math.nan] * 3))),
+    "base_angle": st.builds(lambda b: dict(duration=1.0, dt=1e-3, base_angle=b), st.one_of(
+        st.floats(), st.text(max_size=3),
+        st.integers(2, 4).map(lambda k: (lambda t: jnp.ones(k) * t)))),  # callable, wrong output shape
+}
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(SIM_BAD)))
+def test_simulate_arguments_invalid(data, name):
+    kwargs = data.draw(SIM_BAD[name], label=name)
+    raises_naming(name, gv.simulate, ARM, **kwargs)
+
+
+@FAST
+@given(force=st.one_of(
+    st.floats(max_value=-1e-9), nan_inf, st.text(max_size=3), st.just([]),
+    st.integers(2, 5).map(np.ones),  # one tendon: a (k,) array is the wrong shape
+    st.integers(2, 3).map(lambda k: (lambda t: jnp.ones(k)))))
+def test_simulate_tendon_force_invalid(force):
+    raises_naming("tendon_force", gv.simulate, TENDON_ARM, 1.0, 1e-3, tendon_force=force)
+
+
+@settings(max_examples=10, deadline=None)
+@given(dt=st.sampled_from([0.02, 0.025, 0.05, 0.1, 0.125, 0.2, 0.25, 0.5]))
+def test_simulate_step_beyond_stability_is_rejected_before_the_program_compiles(dt):
+    # the estimate itself runs a few eager JAX ops (tiny compilations), the simulation never
+    sim = importlib.import_module("gvsjax.simulate")  # the module (gvsjax.simulate is the function)
+    programs = sim._run._cache_size()
+    with pytest.raises(ValueError, match=r"dt=.*stability limit"):
+        gv.simulate(ARM, 1.0, dt)
+    assert sim._run._cache_size() == programs
+
+
+def test_simulate_tendon_force_needs_a_tendon():
+    raises_naming("tendon_force", gv.simulate, ARM, 1.0, 1e-3, tendon_force=1.0)
+
+
+# ----------------------------------------------------------------------------- env actions
+
+PICK_PARAMS = pp.PickPlaceParams(arm=TENDON_ARM)  # no target tables: step does not read them
+
+
+def _pick_state():
+    return pp._reset_state(jnp.asarray([[0.5, -0.8], [-0.5, -0.8]]))
+
+
+@FAST
+@given(shape=st.lists(st.integers(0, 3), max_size=3).map(tuple).filter(lambda s: s != (2,)))
+def test_env_action_of_wrong_shape_is_rejected_while_tracing(shape):
+    env = pp.PickPlace()
+    step = lambda a: env.step(jax.random.PRNGKey(0), _pick_state(), a, PICK_PARAMS)  # noqa: E731
+    with no_compile(), pytest.raises(ValueError, match=r"action has shape .* expected \(2,\)"):
+        jax.eval_shape(step, jax.ShapeDtypeStruct(shape, jnp.float64))
+
+
+def test_sanitize_action_policy():
+    a, ok = base.sanitize_action(jnp.array([0.3, -0.2]), 2)
+    assert bool(ok) and np.array_equal(a, [0.3, -0.2])
+    for bad in ([math.nan, 0.5], [0.1, math.inf], [-math.inf, math.nan]):
+        a, ok = base.sanitize_action(jnp.array(bad), 2)
+        assert not bool(ok) and np.array_equal(a, [0.0, 0.0])
+    a, ok = base.sanitize_action(jnp.array([1, -1]), 2)  # ints are cast, not rejected
+    assert bool(ok) and jnp.issubdtype(a.dtype, jnp.floating)
+    assert bool(base.bounded(jnp.array([1.0, -2.0]), 2.0))
+    for x in ([2.5, 0.0], [math.nan, 0.0], [math.inf, 0.0]):
+        assert not bool(base.bounded(jnp.array(x), 2.0))
+
+
+# ----------------------------------------------------------------------------- command line
+
+INT_FIELDS = [k for k in FIELD_DOCS if isinstance(getattr(train.PPOConfig(), k), int)
+              and not isinstance(getattr(train.PPOConfig(), k), bool)]
+FLOAT_FIELDS = [k for k in FIELD_DOCS if isinstance(getattr(train.PPOConfig(), k), float)]
+BOOL_FIELDS = [k for k in FIELD_DOCS if isinstance(getattr(train.PPOConfig(), k), bool)]
+CHOICE_FIELDS = {"network": ("shared", "separate"), "activation": ("relu", "tanh"),
+                 "std_mode": ("learned", "network")}
+SIZES_FIELDS = ["shared_hidden", "actor_hidden", "critic_hidden"]
+junk = st.text(alphabet="xyz!@#% ", min_size=1, max_size=6)
+
+
+def _bad_ppo(name):
+    if name in INT_FIELDS:
+        return st.one_of(junk, st.sampled_from(["1.5", "nan", "inf", "-1", "1e400"]))
+    if name in FLOAT_FIELDS:  # every float field rejects NaN and -inf
+        return st.one_of(junk, st.sampled_from(["nan", "-inf", "--1", "1,2"]))
+    if name in BOOL_FIELDS:
+        return st.one_of(junk, st.sampled_from(["2", "maybe", ""]))
+    if name in CHOICE_FIELDS:
+        return st.text(max_size=8).filter(lambda s: s.strip() not in CHOICE_FIELDS[name])
+    return st.one_of(junk, st.sampled_from(["", "0", "-4,8", "8,0", "1.5,2", "()"]))
+
+
+RUN_BAD = {
+    "checkpoint_every": st.sampled_from(["nan", "-1", "x", ""]),
+    "eval_targets": st.sampled_from(["-1", "1.5", "x"]),
+    "eval_seed": st.sampled_from(["-2", "1.5", "x"]),
+    "updates_per_call": st.sampled_from(["-3", "x"]),
+    "resume": st.sampled_from(["maybe", "2", ""]),
+    "progress": st.sampled_from(["maybe", "2", ""]),
+    "task": junk,
+    "preset": junk,
+}
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(FIELD_DOCS)))
+def test_cli_invalid_ppo_value_names_the_key(data, name):
+    text = data.draw(_bad_ppo(name), label=name)
+
+    def parse_and_build():
+        run, overrides = train.parse_args(["task=basketball", f"{name}={text}"])
+        train.build_config(run["task"], run["preset"], overrides)
+
+    raises_naming(name, parse_and_build)
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(RUN_BAD)))
+def test_cli_invalid_run_option_names_the_key(data, name):
+    text = data.draw(RUN_BAD[name], label=name)
+    raises_naming(name, train.parse_args, [f"{name}={text}"])
+
+
+@FAST
+@given(word=st.text(max_size=12))
+def test_cli_word_without_equals_or_unknown_key(word):
+    key = word.partition("=")[0].strip()
+    if "=" in word and (key in train.RUN_DOCS or key in FIELD_DOCS):
+        return  # a known key: covered above
+    message = raises_naming("", train.parse_args, [word])
+    assert "key=value" in message or "unknown key" in message
+
+
+def test_cli_resume_needs_out_and_main_exits_2(capsys):
+    raises_naming("out", train.parse_args, ["resume=true"])
+    assert train.main(["resume=true"]) == 2
+    assert "out=" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- config files
+
+
+@FAST
+@given(data=st.data(), name=st.sampled_from(sorted(FIELD_DOCS)))
+def test_saved_config_with_a_garbled_value_names_the_key(data, name):
+    value = data.draw(st.one_of(st.text(max_size=4), st.none(), st.just([[1]]), st.just({"x": 1}))
+                      .filter(lambda v: not (isinstance(v, str) and name in CHOICE_FIELDS
+                                             and v in CHOICE_FIELDS[name])))
+    config = {**train.dataclasses.asdict(train.PPOConfig()), name: value}
+    message = raises_naming(name, train.config_from_json, config, "the config saved in X")
+    assert "saved in X" in message
+
+
+def test_saved_config_unknown_key_or_not_an_object():
+    raises_naming("bogus", train.config_from_json, {"bogus": 1})
+    raises_naming("JSON object", train.config_from_json, [1, 2])
+    assert train.config_from_json({"task": "basketball", "preset": "paper"}) == train.PPOConfig()
+
+
+# ----------------------------------------------------------------------------- checkpoint files
+
+
+@pytest.fixture(scope="module")
+def good_checkpoint(tmp_path_factory):
+    path = tmp_path_factory.mktemp("ckpt") / "checkpoint.ckpt"
+    state = {"w": jnp.arange(6.0).reshape(2, 3), "n": jnp.asarray(7, jnp.int32)}
+    checkpoint.save(path, state, {"num_envs": 4}, "basketball", 7)
+    return path, path.read_bytes(), state
+
+
+def test_checkpoint_missing_or_a_directory(tmp_path):
+    raises_naming("does not exist", checkpoint.load_raw, tmp_path / "nope.ckpt",
+                  exc=checkpoint.CheckpointError)
+    raises_naming("is a directory", checkpoint.load_raw, tmp_path, exc=checkpoint.CheckpointError)
+
+
+@settings(max_examples=50, deadline=None)
+@given(data=st.data())
+def test_checkpoint_truncated_or_flipped_bytes_are_detected(good_checkpoint, tmp_path_factory, data):
+    path, blob, _ = good_checkpoint
+    if data.draw(st.booleans(), label="truncate"):
+        cut = data.draw(st.integers(0, len(blob) - 1), label="length")
+        bad = blob[:cut]
+    else:
+        at = data.draw(st.integers(0, len(blob) - 1), label="position")
+        flip = data.draw(st.integers(1, 255), label="xor")
+        bad = blob[:at] + bytes([blob[at] ^ flip]) + blob[at + 1:]
+    target = tmp_path_factory.mktemp("bad") / "checkpoint.ckpt"
+    target.write_bytes(bad)
+    message = raises_naming(str(target), checkpoint.load_raw, target, exc=checkpoint.CheckpointError)
+    assert any(w in message for w in ("truncated", "corrupted", "malformed"))
+
+
+def test_checkpoint_of_another_shape_is_refused(good_checkpoint):
+    path, _, state = good_checkpoint
+    loaded, meta = checkpoint.load(path, jax.tree.map(jnp.zeros_like, state))
+    assert meta["step"] == 7 and np.array_equal(loaded["w"], state["w"])
+    raises_naming("shape", checkpoint.load, path, {"w": jnp.zeros((3, 3)), "n": jnp.zeros((), jnp.int32)},
+                  exc=checkpoint.CheckpointError)
+    raises_naming("does not match", checkpoint.load, path, {"v": jnp.zeros(2)}, exc=checkpoint.CheckpointError)
