@@ -345,3 +345,240 @@ def test_checkpoint_of_another_shape_is_refused(good_checkpoint):
     raises_naming("shape", checkpoint.load, path, {"w": jnp.zeros((3, 3)), "n": jnp.zeros((), jnp.int32)},
                   exc=checkpoint.CheckpointError)
     raises_naming("does not match", checkpoint.load, path, {"v": jnp.zeros(2)}, exc=checkpoint.CheckpointError)
+
+
+# ----------------------------------------------------------------------------- non-finite actions, divergence
+
+
+def _pick_step(params):
+    env = pp.PickPlace()
+    return jax.jit(jax.vmap(lambda s, a: env.step(jax.random.PRNGKey(0), s, a, params), in_axes=(None, 0)))
+
+
+def test_pickplace_non_finite_action_is_replaced_by_the_centre_and_flagged():
+    actions = jnp.array([[math.nan, 0.5], [0.2, math.inf], [-math.inf, math.nan], [0.3, -0.4]])
+    obs, state, reward, done, info = _pick_step(PICK_PARAMS)(_pick_state(), actions)
+    assert info["valid"].tolist() == [False, False, False, True]
+    assert done[:3].all() and np.array_equal(reward[:3], [0.0, 0.0, 0.0]) and reward[3] > 0
+    # the simulated action was the centre of the box: theta_F = 0, tension = 15 N
+    np.testing.assert_array_equal(info["theta_final"][:3], 0.0)
+    np.testing.assert_array_equal(info["tension"][:3], PICK_PARAMS.tension_max / 2)
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(state.q))
+
+
+def test_pickplace_blow_up_is_flagged_even_while_finite():
+    # 300 RK4 steps per 5 s step: dt = 16.7 ms, above the 13.9 ms stability limit; the
+    # integration grows without reaching inf, so only the magnitude bound can catch it
+    params = pp.PickPlaceParams(arm=TENDON_ARM, n_steps=300)
+    action = jnp.array([[1.0 / math.pi, -1.0 / 3.0]])  # theta_F = 1 rad, 10 N
+
+    @jax.jit
+    def run(state, action):
+        out = jax.vmap(lambda a: pp.PickPlace().step(jax.random.PRNGKey(0), state, a, params))(action)
+        theta, tension = pp.action_to_physical(action[0], params)
+        return out, pp.run_step(params, state.q, state.qd, state.tension, theta, tension)
+
+    (_, _, reward, done, info), traj = run(_pick_state(), action)
+    q, qd = np.asarray(traj.q[-1]), np.asarray(traj.qd[-1])
+    assert np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+    assert np.max(np.abs(qd)) > pp.PickPlace.qd_bound  # blown up (a sane step stays below 3)
+    assert not bool(info["valid"][0]) and bool(done[0]) and float(reward[0]) == 0.0
+
+
+def test_basketball_non_finite_action_policy():
+    import inspect
+
+    from gvsjax.tasks import basketball as bb
+
+    if "sanitize_action" not in inspect.getsource(bb.Basketball.step):
+        pytest.skip("basketball.step does not call tasks.base.sanitize_action yet (owned by another "
+                    "engineer; the one-line change is in the issue 6 report)")
+    params = bb.BasketballParams(arm=gv.paper_arm(tip_force=bb.BALL_WEIGHT))  # no target tables
+    state = bb.BasketballState(target=jnp.array([-5.0, 1.0]), source_action=jnp.zeros(2),
+                               step=jnp.zeros((), jnp.int32))
+    env = bb.Basketball()
+    with no_compile(), pytest.raises(ValueError, match="action has shape"):
+        jax.eval_shape(lambda a: env.step(jax.random.PRNGKey(0), state, a, params),
+                       jax.ShapeDtypeStruct((3,), jnp.float64))
+    step = jax.jit(jax.vmap(lambda a: env.step(jax.random.PRNGKey(0), state, a, params)))
+    _, _, reward, done, info = step(jnp.array([[math.nan, 0.0], [0.0, 0.0]]))
+    assert info["valid"].tolist() == [False, True] and done.all() and float(reward[0]) == 0.0
+    assert float(info["T"][0]) == float(info["T"][1])  # the NaN action was thrown as the centre
+
+
+# ----------------------------------------------------------------------------- non-finite training
+
+
+@pytest.fixture
+def bandit_tasks(monkeypatch):
+    """Registers the test bandit ("bandit") and one whose reward is NaN on 1% of valid steps."""
+    from bandit_env import BanditEnv
+
+    class NanBandit(BanditEnv):
+        name = "nanbandit"
+
+        def step(self, key, state, action, params):
+            obs, new, reward, done, info = super().step(key, state, action, params)
+            return obs, new, jnp.where(state.target[0] > 0.98, jnp.nan, reward), done, info
+
+    monkeypatch.setitem(base._REGISTRY, "bandit", BanditEnv)
+    monkeypatch.setitem(base._REGISTRY, "nanbandit", NanBandit)
+
+
+BANDIT = ["num_envs=16", "num_minibatches=2", "update_epochs=1", "total_episodes=960",
+          "progress=false", "eval_targets=0", "updates_per_call=1", "checkpoint_every=1e9"]
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_nan_loss_stops_training_and_keeps_the_last_good_checkpoint(bandit_tasks, tmp_path, capsys):
+    out = tmp_path / "nan"
+    assert train.main(["task=nanbandit", f"out={out}"] + BANDIT) == 3
+    err = capsys.readouterr().err
+    assert "training stopped: metric" in err and "=nan at update" in err and str(out / "checkpoint.ckpt") in err
+    bad_update = int(err.split("=nan at update ")[1].split(".")[0].split()[0])
+    assert 0 < bad_update < 60  # NaN rewards on ~1% of steps: it fails early, not at update 0
+    rows = _rows(out / "metrics.csv")
+    assert [int(r["update"]) for r in rows] == list(range(bad_update + 1))
+    assert math.isnan(float(rows[-1]["loss"])) and all(math.isfinite(float(r["loss"])) for r in rows[:-1])
+    meta = checkpoint.load_raw(out / "checkpoint.ckpt")
+    assert meta["step"] == bad_update  # the state before the failing update, saved on the way out
+    assert not (out / "timing.json").exists()
+    config = train.config_from_json(meta["config"])
+    from bandit_env import BanditEnv
+    from gvsjax.ppo import init
+
+    template = init(config, BanditEnv(), BanditEnv().default_params(), jax.random.PRNGKey(0))
+    state = checkpoint.restore_state(template, meta["train_state"])
+    assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(state.params))
+
+
+def test_non_finite_weights_stop_training(bandit_tasks, tmp_path, capsys, monkeypatch):
+    real = train._update_fn
+    calls = []
+
+    def poisoned(*args, **kwargs):
+        step = real(*args, **kwargs)
+
+        def run(state):
+            state, metrics = step(state)
+            calls.append(1)
+            if len(calls) == 3:  # metrics stay finite, one weight does not
+                state = state.replace(params=jax.tree.map(lambda x: x.at[(0,) * x.ndim].set(jnp.inf),
+                                                          state.params))
+            return state, metrics
+
+        return run
+
+    monkeypatch.setattr(train, "_update_fn", poisoned)
+    out = tmp_path / "inf"
+    assert train.main(["task=bandit", f"out={out}", "checkpoint_every=0"] + BANDIT[:-1]) == 3
+    err = capsys.readouterr().err
+    assert "params" in err and "non-finite by update 2" in err
+    assert checkpoint.load_raw(out / "checkpoint.ckpt")["step"] == 2  # saved after call 2, kept
+
+
+# ----------------------------------------------------------------------------- killed, resumed, repeated runs
+
+ROOT = Path(__file__).resolve().parents[1]
+N_UPDATES = 150  # 16 throws each; the first checkpoint lands after update 1, the kill right after
+SUB = ["task=basketball", "num_envs=16", "num_minibatches=2", "update_epochs=1",
+       f"total_episodes={16 * N_UPDATES}", "progress=false", "eval_targets=0", "updates_per_call=1",
+       "checkpoint_every=0", "seed=5"]
+
+
+def _start(out, *extra):
+    return subprocess.Popen([sys.executable, "-m", "gvsjax.train", *SUB, f"out={out}", *extra], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _finish(proc, timeout=900):
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out + err
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Three trainings of one config started together: a and c run through, b is SIGKILLed
+    right after its first checkpoint (config.json then garbled) and resumed to the end."""
+    root = tmp_path_factory.mktemp("runs")
+    procs = {name: _start(root / name) for name in "abc"}
+    ckpt = root / "b" / "checkpoint.ckpt"
+    deadline = time.monotonic() + 900
+    while not ckpt.exists():
+        if procs["b"].poll() is not None:
+            pytest.fail(f"run b ended before its first checkpoint: {_finish(procs['b'])}")
+        assert time.monotonic() < deadline, "run b wrote no checkpoint in 900 s"
+        time.sleep(0.005)
+    running = procs["b"].poll() is None
+    os.kill(procs["b"].pid, signal.SIGKILL)
+    killed = _finish(procs["b"])
+    info = {"running_at_kill": running, "killed_rc": killed[0],
+            "killed_step": checkpoint.load_raw(ckpt)["step"],
+            "rows_at_kill": _rows(root / "b" / "metrics.csv")}
+    (root / "b" / "config.json").write_text('{"num_envs": 1, garbled')  # resume must not read it
+    procs["b"] = _start(root / "b", "resume=true")
+    info["done"] = {name: _finish(p) for name, p in procs.items()}
+    return root, info
+
+
+def _comparable(rows):
+    return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
+
+
+def test_killed_run_resumes_and_completes(runs):
+    root, info = runs
+    for name, (rc, text) in info["done"].items():
+        assert rc == 0, f"run {name}: exit {rc}\n{text}"
+    assert info["running_at_kill"] and info["killed_rc"] == -signal.SIGKILL
+    assert 1 <= info["killed_step"] < N_UPDATES  # killed mid-run
+    b = root / "b"
+    assert checkpoint.load_raw(b / "checkpoint.ckpt")["step"] == N_UPDATES
+    updates = [int(r["update"]) for r in _rows(b / "metrics.csv")]
+    assert updates == list(range(N_UPDATES))  # every update once: rows past the checkpoint were dropped
+    assert json.loads((b / "config.json").read_text())["num_envs"] == 16  # rewritten from the checkpoint
+    assert not list(b.glob(".*.tmp"))
+    assert json.loads((b / "timing.json").read_text())["updates"] == N_UPDATES
+
+
+def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
+    root, _ = runs
+    a, b = root / "a", root / "b"
+    assert _comparable(_rows(b / "metrics.csv")) == _comparable(_rows(a / "metrics.csv"))
+    assert (checkpoint.load_raw(b / "checkpoint.ckpt")["train_state"]
+            == checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"])  # weights, Adam, key, envs
+
+
+def test_same_config_and_seed_give_bit_identical_runs(runs):
+    root, info = runs
+    a, c = root / "a", root / "c"
+    rows = _comparable(_rows(a / "metrics.csv"))
+    assert len(rows) == N_UPDATES and rows == _comparable(_rows(c / "metrics.csv"))
+    assert (checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"]
+            == checkpoint.load_raw(c / "checkpoint.ckpt")["train_state"])
+    # b's rows written before the kill came from a third process: also identical
+    before = _comparable([r for r in info["rows_at_kill"] if None not in r.values()])
+    assert before and before == rows[: len(before)]
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip"])
+def test_resume_from_a_damaged_checkpoint_is_a_clear_error(runs, tmp_path, capsys, damage):
+    import shutil
+
+    root, _ = runs
+    run = tmp_path / "b"
+    shutil.copytree(root / "b", run)
+    blob = (run / "checkpoint.ckpt").read_bytes()
+    if damage == "truncate":
+        blob = blob[: len(blob) * 2 // 3]
+    else:
+        blob = blob[:-100] + bytes([blob[-100] ^ 0x5A]) + blob[-99:]
+    (run / "checkpoint.ckpt").write_bytes(blob)
+    with no_compile():
+        rc = train.main(SUB + [f"out={run}", "resume=true", f"total_episodes={32 * N_UPDATES}"])
+    err = capsys.readouterr().err
+    assert rc == 2 and str(run / "checkpoint.ckpt") in err
+    assert ("truncated" in err) if damage == "truncate" else ("corrupted" in err)
