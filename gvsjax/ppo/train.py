@@ -15,6 +15,12 @@ index, so the phase switch never recompiles.
 
 Numerics are float32 (observations and rewards are cast), whatever the
 physics uses.
+
+Scale-out (``gvsjax.sharding``): with several JAX devices the ``num_envs``
+axis of the env state, observations and rollout is split over a mesh of the
+devices (as many as divide ``num_envs``) and the network is replicated; the
+rollout batch is gathered onto every device before the minibatch shuffle, so
+the PPO update itself is the single-device computation. One device: no-op.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
+from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import Batch, gae, gaussian_log_prob, ppo_loss
 from gvsjax.ppo.networks import make_network
@@ -77,16 +84,20 @@ def finetune_start(config: PPOConfig, episode_length: int) -> int:
 
 
 def phase_hyperparams(
-    config: PPOConfig, episode_length: int, update: jax.Array
+    config: PPOConfig, episode_length: int, update: jax.Array,
+    learning_rate: jax.Array | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Traced ``(learning_rate, clip_eps)`` for update index ``update``.
 
     Phase 1 uses ``learning_rate``/``clip_eps``, phase 2 the ``finetune_``
     values; with ``anneal_lr`` the phase's rate is scaled by
     ``1 - update / num_updates`` (linear to 0 over the whole run).
+    A given ``learning_rate`` (may be traced, e.g. vmapped in a sweep)
+    replaces ``config.learning_rate`` for phase 1.
     """
     finetune = update >= finetune_start(config, episode_length)
-    lr = jnp.where(finetune, config.finetune_learning_rate, config.learning_rate)
+    base = config.learning_rate if learning_rate is None else learning_rate
+    lr = jnp.where(finetune, config.finetune_learning_rate, base)
     if config.anneal_lr:
         lr = lr * (1.0 - update / num_updates(config, episode_length))
     clip_eps = jnp.where(finetune, config.finetune_clip_eps, config.clip_eps)
@@ -108,23 +119,31 @@ def make_optimizer(config: PPOConfig) -> optax.GradientTransformation:
     )
 
 
+def _shardings(config: PPOConfig):
+    """(env-batch sharding, replicated sharding); both None on one device."""
+    mesh = sharding.mesh_for(config.num_envs)
+    return sharding.batch_spec(mesh), sharding.replicated(mesh)
+
+
 def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainState:
     """Fresh network, optimizer and ``num_envs`` freshly reset environments."""
+    envs, everywhere = _shardings(config)
     key, key_net, key_reset = jax.random.split(key, 3)
     network = make_network(config, env.action_size)
     params = network.init(key_net, jnp.zeros((env.obs_size,), jnp.float32))
+    params = sharding.constrain(params, everywhere)
     obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(
         jax.random.split(key_reset, config.num_envs), env_params
     )
     return TrainState(
         params=params,
         opt_state=make_optimizer(config).init(params),
-        env_state=env_state,
-        last_obs=obs.astype(jnp.float32),
+        env_state=sharding.constrain(env_state, envs),
+        last_obs=sharding.constrain(obs.astype(jnp.float32), envs),
         key=key,
         update=jnp.zeros((), jnp.int32),
         episodes=jnp.zeros((), jnp.int32),
-        episode_return=jnp.zeros((config.num_envs,), jnp.float32),
+        episode_return=sharding.constrain(jnp.zeros((config.num_envs,), jnp.float32), envs),
     )
 
 
@@ -139,11 +158,14 @@ def collect(
     ``auto_reset_step`` replaces the diverged state.
     """
     apply_fn = make_network(config, env.action_size).apply
-    env_step = jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None))
     n = config.num_envs
+    envs, _ = _shardings(config)
+    # each device steps its own slice of the envs (no-op on one device)
+    env_step = sharding.split_batch(jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None)),
+                                    envs and envs.mesh, (0, 0, 0, None))
 
     def one_step(carry, keys):  # keys: (n + 1,) = action key, one key per env
-        env_state, obs, episode_return = carry
+        env_state, obs, episode_return = sharding.constrain(carry, envs)  # env axis split
         mean, log_std, value = apply_fn(state.params, obs)
         action = mean + jnp.exp(log_std) * jax.random.normal(keys[0], mean.shape, mean.dtype)
         next_obs, env_state, reward, done, info = env_step(keys[1:], env_state, action, env_params)
@@ -211,7 +233,8 @@ def episode_metrics(trajectory: Trajectory) -> dict[str, jax.Array]:
 
 
 def update(
-    config: PPOConfig, env, env_params: PyTree, state: TrainState
+    config: PPOConfig, env, env_params: PyTree, state: TrainState,
+    learning_rate: jax.Array | None = None,
 ) -> tuple[TrainState, dict[str, jax.Array]]:
     """One PPO update: collect, GAE, ``update_epochs`` x ``num_minibatches`` Adam steps.
 
@@ -219,10 +242,11 @@ def update(
     ``grad_norm`` (means over all minibatch steps), episode metrics of the
     rollout (see ``episode_metrics``), ``learning_rate``, ``clip_eps``,
     ``update`` (index of this update) and ``episodes`` (total so far).
+    ``learning_rate``: see ``phase_hyperparams``.
     """
     apply_fn = make_network(config, env.action_size).apply
     optimizer = make_optimizer(config)
-    lr, clip_eps = phase_hyperparams(config, env.episode_length, state.update)
+    lr, clip_eps = phase_hyperparams(config, env.episode_length, state.update, learning_rate)
 
     index = state.update
     state, trajectory = collect(config, env, env_params, state)
@@ -241,6 +265,9 @@ def update(
         target=flat(target),
         weight=flat(trajectory.valid).astype(jnp.float32),
     )
+    # every device gets the whole rollout: the shuffle and the Adam steps are then
+    # the single-device computation (small next to the physics of the rollout)
+    batch = sharding.constrain(batch, _shardings(config)[1])
     size = batch.weight.shape[0]
 
     def minibatch_step(carry, minibatch):
@@ -308,19 +335,23 @@ def make_update(
 def make_train(
     config: PPOConfig, env, env_params: PyTree
 ) -> Callable[[jax.Array], tuple[TrainState, dict[str, jax.Array]]]:
-    """A jitted pure ``train(key) -> (final_state, metrics)`` doing the whole run.
+    """A jitted pure ``train(key, learning_rate=None) -> (final_state, metrics)`` doing
+    the whole run.
 
     Metrics are stacked over ``num_updates``. ``jax.vmap(train)(keys)`` trains
-    one agent per key in parallel. ``config.seed`` is not read here: callers
+    one agent per key in parallel; ``jax.vmap(train)(keys, learning_rates)``
+    sweeps the phase-1 learning rate too (``None``: ``config.learning_rate``),
+    all in one compiled call. ``config.seed`` is not read here: callers
     pass ``jax.random.PRNGKey(config.seed)``.
     """
     total = num_updates(config, env.episode_length)
 
     @jax.jit
-    def train(key):
+    def train(key, learning_rate=None):
         state = init(config, env, env_params, key)
         return jax.lax.scan(
-            lambda s, _: update(config, env, env_params, s), state, None, length=total
+            lambda s, _: update(config, env, env_params, s, learning_rate), state, None,
+            length=total,
         )
 
     return train
