@@ -1,0 +1,227 @@
+"""gvsjax vs JSRM (planar piecewise-constant-strain rods in JAX) on the basketball swing (issue 4, item 1).
+
+JSRM (``pip install jsrm``) builds a planar PCS rod from pre-derived symbolic
+expressions (``jsrm.systems.planar_pcs.factory``: sympy -> JAX) and returns
+B(q), C(q, qd), G(q), K(q), D, alpha for B qdd + C qd + G + K + D qd = alpha tau.
+It has a fixed base (the base angle ``th0`` is a constant parameter) and no
+time integrator of its own (its examples use diffrax).
+
+The swing is therefore modelled as a *base-actuated variant*: a 3-segment PCS
+rod (JSRM's ``planar_pcs_ns-3``) whose first segment is a short "joint"
+(l0 = 1 mm) whose bending strain is prescribed, kappa_0(t) = theta(t) / l0,
+so it turns the frame of the two arm segments (0.5 m each) by exactly theta(t)
+(and moves their base by a 1 mm chord). The prescribed coordinate is imposed
+the same way gvsjax imposes its joint (infinite-gain computed torque):
+B_uu qdd_u = (J^T f - C qd - G - K - D qd)_u - B_ua qdd_a. Only bending
+strains are active (gvsjax's arm bends only); the base hangs along -y
+(th0 = pi); gravity (0, -9.81); the ball is J_tip^T (0, -5.886) with JSRM's
+own tip Jacobian. Stiffness is JSRM's (E I l per segment); damping is
+Kelvin-Voigt 3 eta I l per segment (gvsjax's convention) through JSRM's D.
+
+Both models are stepped by the same classical RK4 (its 4 stages in a
+``lax.scan``, as gvsjax does; JSRM's steps in a ``fori_loop`` with a traced
+count, so one compiled program serves every step count), jit+vmap over a
+batch of 1024 throws (T ~ U[0.5, 3] s, delta ~ U[0.85, 1]), each at the
+smallest step count whose worst release tip position over the batch is within
+1 mm of its own converged run (8x the steps). Reported: simulated s per wall s,
+XLA compile time, and JSRM's one-time symbolic load (sympy lambdify).
+
+    python experiments/bench_jsrm.py          # ~10 min on 2 shared cores (JSRM's lambdify is slow)
+
+Writes benchmarks/jsrm.json and prints a Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import gvsjax as gv  # first: configures JAX
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+THETA_F = math.radians(210.0)
+BALL = 5.886
+P = gv.PAPER_ARM
+L0 = 1e-3  # m, the prescribed "joint" segment
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def load_average() -> str:
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+
+
+def rk4(accel, q0, qd0, t_end, n_steps):
+    """Classical RK4 on (q, qd), n_steps fixed steps (n_steps may be traced: one compiled
+    program serves every step count). The four stages run as a 4-long ``lax.scan`` (as in
+    gvsjax's RK4) so the dynamics appear once in the program."""
+    dt = t_end / n_steps
+    c = jnp.array([0.0, 0.5, 0.5, 1.0])
+    w = jnp.array([1.0, 2.0, 2.0, 1.0]) / 6.0
+
+    def step(i, state):
+        q, qd = state
+        t = i * dt
+
+        def stage(carry, cw):
+            (kq, kqd), (sq, sqd) = carry
+            ci, wi = cw
+            qi, qdi = q + ci * dt * kq, qd + ci * dt * kqd
+            k = (qdi, accel(t + ci * dt, qi, qdi))
+            return (k, (sq + wi * k[0], sqd + wi * k[1])), None
+
+        zero = (jnp.zeros_like(q), jnp.zeros_like(qd))
+        (_, (sq, sqd)), _ = jax.lax.scan(stage, (zero, zero), (c, w))
+        return q + dt * sq, qd + dt * sqd
+
+    return jax.lax.fori_loop(0, n_steps, step, (q0, qd0))
+
+
+def make_jsrm():
+    """JSRM's 3-segment planar PCS (bending only), params, and timings of its symbolic load."""
+    import jsrm
+    from jsrm.systems import planar_pcs
+
+    t0 = time.perf_counter()
+    path = Path(jsrm.__file__).parent / "symbolic_expressions" / "planar_pcs_ns-3.dill"
+    B_xi, fk, dyn, aux = planar_pcs.factory(path, strain_selector=jnp.array([True, False, False] * 3))
+    load_s = time.perf_counter() - t0
+    r, E, eta = P["radius"], P["youngs_modulus"], P["damping"]
+    I = math.pi * r**4 / 4.0
+    l = jnp.array([L0, 0.5 * P["length"], 0.5 * P["length"]])
+    d = []
+    for li in l:  # per segment (bend, shear, axial): SoRoSim's eta (3I, A, 3A) times the length
+        d += [3 * eta * I * li, eta * math.pi * r**2 * li, 3 * eta * math.pi * r**2 * li]
+    params = dict(th0=jnp.array(math.pi), l=l, r=jnp.full(3, r), rho=jnp.full(3, P["density"]),
+                  g=jnp.array([0.0, -P["gravity"]]), E=jnp.full(3, E), G=jnp.full(3, E / 3.0),
+                  D=jnp.diag(jnp.array(d)))
+    return dict(fk=fk, dyn=dyn, jac=aux["jacobian_fn"], params=params, load_s=load_s)
+
+
+def jsrm_release_fn(js):
+    fk, dyn, jac, params = js["fk"], js["dyn"], js["jac"], js["params"]
+    s_tip = float(jnp.sum(params["l"]))
+    f_tip = jnp.array([0.0, -BALL, 0.0])
+
+    def rel(T, delta, n_steps):
+        law = lambda t: THETA_F * (t / T) ** 2 / L0  # noqa: E731
+        law_dd = 2.0 * THETA_F / T**2 / L0
+
+        def accel(t, qu, qud):
+            q = jnp.concatenate([law(t)[None], qu])
+            qd = jnp.concatenate([(2.0 * THETA_F * t / T**2 / L0)[None], qud])
+            B, C, G, K, D, _ = dyn(params, q, qd)
+            f = jac(params, q, s_tip).T @ f_tip - C @ qd - G - K - D @ qd
+            return jnp.linalg.solve(B[1:, 1:], f[1:] - B[1:, 0] * law_dd)
+
+        t_rel = delta * T
+        qu, qud = rk4(accel, jnp.zeros(2), jnp.zeros(2), t_rel, n_steps)
+        q = jnp.concatenate([law(t_rel)[None], qu])
+        return fk(params, q, s_tip)[:2]
+
+    return rel
+
+
+def gvsjax_release_fn(n_steps):
+    arm = gv.paper_arm(tip_force=BALL)
+
+    def rel(T, delta):
+        traj = gv.simulate(arm, delta * T, n_steps=n_steps, save_every=n_steps, check_stability=False,
+                           base_angle=lambda t: THETA_F * (t / T) ** 2)
+        return traj.tip[-1, :2]
+
+    return rel
+
+
+def steps_for_1mm(batched, T, d, candidates):
+    """Smallest step count whose worst release position over (T, d) is within 1 mm of 8x steps.
+    ``batched(n)`` returns the batched release function for n steps."""
+    for n in candidates:
+        coarse = np.asarray(batched(n)(T, d))
+        fine = np.asarray(batched(8 * n)(T, d))
+        err = float(np.max(np.linalg.norm(coarse - fine, axis=-1)))
+        if np.isfinite(coarse).all() and err <= 1e-3:
+            return n, err, fine
+    raise RuntimeError(f"no step count in {candidates} reaches 1 mm")
+
+
+def timed(fn, *args, repeats=3):
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        runs.append(time.perf_counter() - t0)
+    return first - float(np.median(runs)), float(np.median(runs))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--batch", type=int, default=1024)
+    ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "jsrm.json"))
+    args = ap.parse_args()
+    load_start = load_average()
+    print("load at start:", load_start)
+    k1, k2 = jax.random.split(jax.random.PRNGKey(0))
+    T = jax.random.uniform(k1, (args.batch,), minval=0.5, maxval=3.0)
+    d = jax.random.uniform(k2, (args.batch,), minval=0.85, maxval=1.0)
+    sim_s = float(jnp.sum(T * d))
+    # the accuracy search runs on the 64 slowest-to-converge candidates: the longest throws (largest dt)
+    # and the fastest (largest accelerations)
+    order = np.argsort(np.asarray(T * d))
+    probe = np.concatenate([order[:32], order[-32:]])
+    Tp, dp = T[probe], d[probe]
+
+    js = make_jsrm()
+    print(f"JSRM symbolic load (sympy lambdify): {js['load_s']:.0f} s")
+    # JSRM: one compiled program for every step count (its compile is slow); gvsjax: one per count
+    js_batched = jax.jit(jax.vmap(jsrm_release_fn(js), in_axes=(0, 0, None)))
+    t0 = time.perf_counter()
+    js_compiled = js_batched.lower(T, d, 100).compile()
+    js_compile_s = time.perf_counter() - t0
+    makers = dict(gvsjax=lambda n: jax.jit(jax.vmap(gvsjax_release_fn(n))),
+                  jsrm=lambda n: (lambda T, d: js_compiled(T, d, n)))
+    rows = {}
+    for name, cands in (("gvsjax", (50, 100, 150, 200, 250, 300, 400, 600)),
+                        ("jsrm", (50, 100, 150, 200, 250, 300, 400, 600, 800, 1200))):
+        n, err, conv = steps_for_1mm(makers[name], Tp, dp, cands)
+        compile_s, run_s = timed(makers[name](n), T, d)
+        if name == "jsrm":
+            compile_s = js_compile_s
+        rows[name] = dict(n_steps=n, release_error_m=err, compile_s=compile_s, run_s=run_s,
+                          sim_s_per_wall_s=sim_s / run_s, throws_per_s=args.batch / run_s,
+                          converged_tip=conv.tolist())
+        print(name, rows[name]["n_steps"], f"{err * 1e3:.3f} mm", f"{run_s:.3f} s", f"compile {compile_s:.1f} s")
+    diff = np.linalg.norm(np.array(rows["gvsjax"]["converged_tip"]) - np.array(rows["jsrm"]["converged_tip"]), axis=-1)
+    for r in rows.values():
+        del r["converged_tip"]
+    res = dict(batch=args.batch, simulated_s=sim_s, rows=rows, jsrm_symbolic_load_s=js["load_s"],
+               ratio_sim_s_per_wall_s=rows["gvsjax"]["sim_s_per_wall_s"] / rows["jsrm"]["sim_s_per_wall_s"],
+               release_gvsjax_vs_jsrm_cm=dict(median=1e2 * float(np.median(diff)), max=1e2 * float(np.max(diff))),
+               joint_segment_m=L0, load_start=load_start, load_end=load_average(), jax=jax.__version__)
+    os.makedirs(os.path.dirname(args.json), exist_ok=True)
+    with open(args.json, "w") as fh:
+        json.dump(res, fh, indent=2)
+    print(f"\nbatch {args.batch}, RK4 both, step count for <= 1 mm release error vs 8x steps "
+          f"(checked on the 64 longest/shortest throws)\n")
+    print("| simulator | RK4 steps/throw | error (mm) | wall s | simulated s / wall s | compile s |")
+    print("|---|---|---|---|---|---|")
+    for name, r in rows.items():
+        print(f"| {name} | {r['n_steps']} | {r['release_error_m'] * 1e3:.3f} | {r['run_s']:.3f} | "
+              f"{r['sim_s_per_wall_s']:,.0f} | {r['compile_s']:.1f} |")
+    print(f"\nratio gvsjax / JSRM: {res['ratio_sim_s_per_wall_s']:.1f}x; JSRM symbolic load {js['load_s']:.0f} s; "
+          f"release position gvsjax (2 modes) vs JSRM (2 PCS segments): median "
+          f"{res['release_gvsjax_vs_jsrm_cm']['median']:.1f} cm, max {res['release_gvsjax_vs_jsrm_cm']['max']:.1f} cm")
+    print(f"load: {load_start} -> {res['load_end']}")
+
+
+if __name__ == "__main__":
+    main()

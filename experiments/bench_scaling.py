@@ -1,0 +1,310 @@
+"""Scaling of the simulator and of one PPO update (issue 4, item 3).
+
+1. batch: throws/s (the paper's swing to release, 300 RK4 steps, T ~ U[0.5, 3] s,
+   delta ~ U[0.85, 1]) and basketball env-steps/s (``env.step``: the throw plus
+   the flight/cost; one step = one throw) vs batch size 1 ... 16384.
+2. model size: RK4 steps/s at batch 1024 vs n_gauss (2 modes) and vs the number
+   of strain modes (Legendre, n_gauss = max(5, n_modes + 2)), with each model's
+   linearised RK4 stability limit and the throws/s that limit allows (a 3 s
+   throw needs 3 s / dt_max steps; many modes are stiff).
+3. dt: throws/s at batch 1024 vs the RK4 step (n_steps per throw) with the worst
+   release position error vs 10x the steps.
+4. PPO: wall time of one update (``gvsjax.ppo.train.make_update``, the path
+   ``python -m gvsjax.train`` runs; basketball defaults) vs num_envs, and XLA's
+   planned memory of the compiled update (``compile().memory_analysis()``:
+   arguments + outputs + temporaries) and the process's peak RSS.
+5. compile time per task: the training program of ``python -m gvsjax.train task=...``
+   (target <= 30 s) and the env's target tables.
+
+    python experiments/bench_scaling.py [--quick]
+
+Writes benchmarks/scaling.json, figures/bench_scaling_{batch,model,dt,ppo}.png and prints
+Markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import gvsjax as gv  # first: configures JAX
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_sim import actions, make_throws  # noqa: E402
+
+THETA_F = math.radians(210.0)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+FIG = os.path.join(ROOT, "figures")
+
+
+def load_average() -> str:
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+
+
+def timed(fn, *args, repeats=3):
+    """(compile + first run - median run, median run) in s."""
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        runs.append(time.perf_counter() - t0)
+    return first - float(np.median(runs)), float(np.median(runs))
+
+
+def vs_batch(batches, n_steps=300):
+    from gvsjax.tasks import make
+
+    throws = make_throws(n_steps)
+    env = make("basketball")
+    params = env.default_params()
+
+    @jax.jit
+    def env_steps(keys, actions_):
+        obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+        return jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, state, actions_, params)[1]
+
+    rows = []
+    for b in batches:
+        T, d = actions(b)
+        reps = 3 if b <= 4096 else 1
+        c, r = timed(throws, T, d, repeats=reps)
+        keys = jax.random.split(jax.random.PRNGKey(1), b)
+        acts = jax.random.uniform(jax.random.PRNGKey(2), (b, 2), minval=-1.0, maxval=1.0)
+        ce, re = timed(env_steps, keys, acts, repeats=reps)
+        rows.append(dict(batch=b, throws_per_s=b / r, rk4_steps_per_s=b * n_steps / r, compile_s=c,
+                         env_steps_per_s=b / re, env_compile_s=ce))
+        print(f"batch {b}: {b / r:,.0f} throws/s, {b / re:,.0f} env-steps/s", flush=True)
+    return rows
+
+
+def vs_model(configs, batch=1024, n_steps=100):
+    rows = []
+    for n_modes, n_gauss in configs:
+        basis = "monomial" if n_modes <= 2 else "legendre"
+        arm = gv.paper_arm(tip_force=5.886, n_modes=n_modes, n_gauss=n_gauss, basis=basis)
+        dt_max = gv.stable_step_estimate(arm, "rk4", np.zeros(n_modes + 1))
+        dt = 0.5 * min(dt_max, 0.01)
+        # the swing scaled so that n_steps steps of dt stay stable (speed only: cost per step
+        # does not depend on the values)
+
+        def rel(T):
+            tr = gv.simulate(arm, n_steps * dt, n_steps=n_steps, save_every=n_steps, check_stability=False,
+                             base_angle=lambda t: THETA_F * (t / T) ** 2)
+            return tr.tip[-1]
+
+        T = jnp.linspace(1.0, 1.2, batch) * n_steps * dt
+        c, r = timed(jax.jit(jax.vmap(rel)), T)
+        steps_s = batch * n_steps / r
+        n_needed = max(1, math.ceil(3.0 / dt_max))
+        rows.append(dict(n_modes=n_modes, n_gauss=n_gauss, basis=basis, rk4_steps_per_s=steps_s,
+                         compile_s=c, dt_max_s=dt_max, steps_for_3s_throw=n_needed,
+                         throws_per_s_at_dt_max=steps_s / max(n_needed, 300)))
+        print(f"modes {n_modes} gauss {n_gauss}: {steps_s:.3g} RK4 steps/s, dt_max {dt_max:.2e} s", flush=True)
+    return rows
+
+
+def vs_dt(step_counts, batch=1024):
+    T, d = actions(batch)
+    probe = actions(128, seed=3)
+    rows = []
+    for n in step_counts:
+        fn = make_throws(n)
+        c, r = timed(fn, T, d)
+        coarse = np.asarray(fn(*probe)[0])
+        fine = np.asarray(make_throws(10 * n)(*probe)[0])
+        err = float(np.max(np.linalg.norm(coarse - fine, axis=-1)))
+        rows.append(dict(n_steps=n, dt_max_ms=3e3 / n, throws_per_s=batch / r, release_error_m=err, compile_s=c))
+        print(f"n_steps {n}: {batch / r:,.0f} throws/s, error {err * 1e3:.2e} mm", flush=True)
+    return rows
+
+
+def vs_ppo(num_envs_list):
+    from gvsjax.ppo.train import init, make_update, num_updates
+    from gvsjax.tasks import make
+    from gvsjax.train import build_config
+
+    env = make("basketball")
+    env_params = env.default_params()
+    rows = []
+    for n in num_envs_list:
+        config = build_config("basketball", "default", dict(num_envs=n))
+        state = init(config, env, env_params, jax.random.PRNGKey(0))
+        upd = make_update(config, env, env_params, updates_per_call=1)
+        t0 = time.perf_counter()
+        compiled = upd.lower(state).compile()
+        compile_s = time.perf_counter() - t0
+        mem = compiled.memory_analysis()
+        planned = (mem.argument_size_in_bytes + mem.output_size_in_bytes + mem.temp_size_in_bytes
+                   - mem.alias_size_in_bytes)
+        s = state
+        s, _ = compiled(s)
+        jax.block_until_ready(s)
+        runs = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            s, _ = compiled(s)
+            jax.block_until_ready(s)
+            runs.append(time.perf_counter() - t0)
+        run = float(np.median(runs))
+        rows.append(dict(num_envs=n, update_s=run, episodes_per_s=n * config.num_steps / run, compile_s=compile_s,
+                         xla_planned_bytes=int(planned), xla_temp_bytes=int(mem.temp_size_in_bytes),
+                         peak_rss_bytes_so_far=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
+                         minibatch_steps=config.update_epochs * config.num_minibatches,
+                         num_updates_default=num_updates(config, env.episode_length)))
+        print(f"num_envs {n}: update {run:.3f} s, XLA planned {planned / 2**20:.1f} MiB", flush=True)
+    return rows
+
+
+def compile_times(tasks=("basketball", "pickplace")):
+    """Compile time of the training program ``python -m gvsjax.train task=...`` runs
+    (``_update_fn`` with the CLI's updates per call) and of the env's parameter tables."""
+    from gvsjax.ppo.train import init, num_updates
+    from gvsjax.tasks import make
+    from gvsjax.train import _update_fn, build_config
+
+    rows = []
+    for task in tasks:
+        env = make(task)
+        t0 = time.perf_counter()
+        env_params = env.default_params()
+        jax.block_until_ready(env_params)
+        params_s = time.perf_counter() - t0
+        config = build_config(task, "default", {})
+        state = init(config, env, env_params, jax.random.PRNGKey(0))
+        total = num_updates(config, env.episode_length)
+        per_call = max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
+        fn = _update_fn(task, config, env, env_params, per_call)
+        t0 = time.perf_counter()
+        fn.lower(state).compile()
+        compile_s = time.perf_counter() - t0
+        rows.append(dict(task=task, env_params_s=params_s, update_compile_s=compile_s, updates_per_call=per_call,
+                         num_envs=config.num_envs))
+        print(f"{task}: env tables {params_s:.1f} s, update program compile {compile_s:.1f} s", flush=True)
+    return rows
+
+
+def plot(res):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(FIG, exist_ok=True)
+    b = res["batch"]
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    ax.loglog([r["batch"] for r in b], [r["throws_per_s"] for r in b], "o-", label="throws/s (simulate)")
+    ax.loglog([r["batch"] for r in b], [r["env_steps_per_s"] for r in b], "s--", label="env-steps/s (env.step)")
+    ax.axhline(3000, color="gray", lw=0.8, ls=":", label="target 3,000/s")
+    ax.set_xlabel("batch")
+    ax.set_ylabel("per second")
+    ax.set_title("Basketball throws, 300 RK4 steps each")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(FIG, "bench_scaling_batch.png"), dpi=130)
+    plt.close(fig)
+
+    m = res["model"]
+    fig, axs = plt.subplots(1, 2, figsize=(9, 3.6))
+    g = [r for r in m if r["n_modes"] == 2]
+    k = [r for r in m if r["n_gauss"] == max(5, r["n_modes"] + 2)]
+    axs[0].plot([r["n_gauss"] for r in g], [r["rk4_steps_per_s"] for r in g], "o-")
+    axs[0].set_xlabel("n_gauss (2 modes)")
+    axs[0].set_ylabel("RK4 steps/s, batch 1024")
+    axs[1].semilogy([r["n_modes"] for r in k], [r["rk4_steps_per_s"] for r in k], "o-", label="RK4 steps/s")
+    axs[1].semilogy([r["n_modes"] for r in k], [r["throws_per_s_at_dt_max"] for r in k], "s--",
+                    label="3 s throws/s at the stable dt")
+    axs[1].set_xlabel("strain modes (n_gauss = max(5, n + 2))")
+    axs[1].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(FIG, "bench_scaling_model.png"), dpi=130)
+    plt.close(fig)
+
+    d = res["dt"]
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    ax.loglog([r["dt_max_ms"] for r in d], [r["throws_per_s"] for r in d], "o-", label="throws/s")
+    ax2 = ax.twinx()
+    ax2.loglog([r["dt_max_ms"] for r in d], [max(r["release_error_m"], 1e-12) * 1e3 for r in d], "s--", color="C1",
+               label="release error (mm)")
+    ax.set_xlabel("largest dt in the batch (ms) = 3 s / n_steps")
+    ax.set_ylabel("throws/s, batch 1024")
+    ax2.set_ylabel("release error vs 10x steps (mm)", color="C1")
+    fig.tight_layout()
+    fig.savefig(os.path.join(FIG, "bench_scaling_dt.png"), dpi=130)
+    plt.close(fig)
+
+    p = res["ppo"]
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    ax.loglog([r["num_envs"] for r in p], [r["update_s"] for r in p], "o-", label="update wall s")
+    ax2 = ax.twinx()
+    ax2.loglog([r["num_envs"] for r in p], [r["xla_planned_bytes"] / 2**20 for r in p], "s--", color="C1")
+    ax.set_xlabel("num_envs")
+    ax.set_ylabel("one PPO update (s)")
+    ax2.set_ylabel("XLA planned memory (MiB)", color="C1")
+    ax.set_title("Basketball PPO update (8 epochs x 8 minibatches)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(FIG, "bench_scaling_ppo.png"), dpi=130)
+    plt.close(fig)
+
+
+def print_tables(res):
+    print("\n| batch | throws/s | RK4 steps/s | env-steps/s | compile s |")
+    print("|---|---|---|---|---|")
+    for r in res["batch"]:
+        print(f"| {r['batch']} | {r['throws_per_s']:,.0f} | {r['rk4_steps_per_s']:.3g} | "
+              f"{r['env_steps_per_s']:,.0f} | {r['compile_s']:.1f} |")
+    print("\n| n_modes | n_gauss | RK4 steps/s (batch 1024) | stable dt (ms) | 3 s throws/s at that dt | compile s |")
+    print("|---|---|---|---|---|---|")
+    for r in res["model"]:
+        print(f"| {r['n_modes']} | {r['n_gauss']} | {r['rk4_steps_per_s']:.3g} | {r['dt_max_s'] * 1e3:.3g} | "
+              f"{r['throws_per_s_at_dt_max']:,.1f} | {r['compile_s']:.1f} |")
+    print("\n| RK4 steps per throw | largest dt (ms) | throws/s (batch 1024) | release error (mm) |")
+    print("|---|---|---|---|")
+    for r in res["dt"]:
+        print(f"| {r['n_steps']} | {r['dt_max_ms']:.1f} | {r['throws_per_s']:,.0f} | {r['release_error_m'] * 1e3:.2e} |")
+    print("\n| num_envs | one update (s) | episodes/s | XLA planned MiB | peak RSS so far MiB | compile s |")
+    print("|---|---|---|---|---|---|")
+    for r in res["ppo"]:
+        print(f"| {r['num_envs']} | {r['update_s']:.3f} | {r['episodes_per_s']:,.0f} | "
+              f"{r['xla_planned_bytes'] / 2**20:.1f} | {r['peak_rss_bytes_so_far'] / 2**20:.0f} | {r['compile_s']:.1f} |")
+    print("\n| task | env tables s | training-program compile s | updates per call |")
+    print("|---|---|---|---|")
+    for r in res["compile"]:
+        print(f"| {r['task']} | {r['env_params_s']:.1f} | {r['update_compile_s']:.1f} | {r['updates_per_call']} |")
+    print(f"\nload: {res['load_start']} -> {res['load_end']}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="fewer points")
+    ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "scaling.json"))
+    args = ap.parse_args()
+    res = dict(load_start=load_average(), jax=jax.__version__)
+    print("load at start:", res["load_start"])
+    q = args.quick
+    res["batch"] = vs_batch([1, 16, 256, 1024, 4096] if q else [1, 4, 16, 64, 256, 1024, 4096, 16384])
+    res["model"] = vs_model([(2, 3), (2, 5), (2, 8), (2, 12), (1, 5), (3, 5), (4, 6), (6, 8)] if q else
+                            [(2, 3), (2, 5), (2, 8), (2, 12), (2, 16), (1, 5), (3, 5), (4, 6), (6, 8), (8, 10)])
+    res["dt"] = vs_dt([240, 300, 600] if q else [200, 240, 300, 400, 600, 1200])
+    res["ppo"] = vs_ppo([256, 1024, 4096] if q else [64, 256, 1024, 4096, 16384])
+    res["compile"] = compile_times()
+    res["load_end"] = load_average()
+    os.makedirs(os.path.dirname(args.json), exist_ok=True)
+    with open(args.json, "w") as fh:
+        json.dump(res, fh, indent=2)
+    plot(res)
+    print_tables(res)
+
+
+if __name__ == "__main__":
+    main()
