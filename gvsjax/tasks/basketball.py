@@ -18,8 +18,9 @@ Cost c (m): the exact closest distance between the flight path and the target
 (the stationary points of |p(tau) - target|^2 are the roots of a cubic, solved
 in closed form and polished by Newton steps; the path's ends are candidates
 too). Reward exp(-k c), k = 2.2 (0.8 at the 10 cm success threshold).
-Single-step episodes: ``done`` is always True. A non-finite throw gives
-``info["valid"] = False`` and reward 0.
+Single-step episodes: ``done`` is always True. A non-finite action (played
+as the box centre) or a non-finite throw gives ``info["valid"] = False`` and
+reward 0, which PPO masks out of its loss.
 
 Targets (reachable by construction). At construction a table of release
 states is simulated on a grid of actions (``n_grid_T`` values of T spaced
@@ -37,7 +38,8 @@ in-window path. ``"area"``: the window is cut into ``cell`` x ``cell``
 squares, up to ``per_cell`` path samples are kept in every square some path
 crosses, and ``reset`` draws a covered square uniformly (uniform in area over
 the workspace, more far targets), one of its samples, and jitters its flight
-time along that same path by up to half a sample step. Either way the target
+time along that same path by up to half a sample step. ``"mixed"``: each
+draw is ``"action"`` or ``"area"`` with probability 1/2. Either way the target
 lies exactly on the flight path of a grid action, hence is reachable (to the
 simulator's float precision). ``reset`` is pure JAX table look-up: it never
 simulates. ``experiments/basketball_figures.py`` plots the workspace.
@@ -54,7 +56,7 @@ import numpy as np
 from flax import struct
 
 import gvsjax as gv
-from gvsjax.tasks.base import register
+from gvsjax.tasks.base import register, sanitize_action
 
 BALL_WEIGHT = 5.886  # N, a 0.6 kg ball under g = 9.81
 HOOP = (-6.75, 1.1)  # m, the three-point shot relative to the arm's base
@@ -75,7 +77,8 @@ class BasketballParams:
     window: tuple = WINDOW  # m, (x_min, x_max, y_min, y_max): targets and obs scaling
     n_steps: int = struct.field(pytree_node=False, default=300)  # RK4 steps to release
     # "action": a uniform random action, a point uniform in flight time on its in-window path;
-    # "area": uniform in area over the cells the paths cover (harder: more far targets)
+    # "area": uniform in area over the cells the paths cover (harder: more far targets);
+    # "mixed": either of the two with probability 1/2
     target_sampling: str = struct.field(pytree_node=False, default="action")
     # target tables (see module docstring); shapes: P grid throws, C covered cells, K per cell
     path_p0: jax.Array = None  # (P, 2) m
@@ -220,15 +223,25 @@ def _in_window(p, window):
 def sample_target(key, params: BasketballParams):
     """A reachable target (2,) m and the grid action whose path passes through it."""
     k_path, k_slot, k_jit = jax.random.split(key, 3)
-    if params.target_sampling == "area":
+
+    def by_area():
         cell = jax.random.randint(k_path, (), 0, params.cell_count.shape[0])
         slot = jax.random.randint(k_slot, (), 0, params.cell_count[cell])
         path, tau = params.cell_path[cell, slot], params.cell_tau[cell, slot]
-        width = params.path_jitter[path]
-    else:
+        return path, tau, params.path_jitter[path]
+
+    def by_action():
         path = jax.random.categorical(k_path, params.path_log_weight)
         slot = jax.random.randint(k_slot, (), 0, params.path_flight_tau.shape[1])
-        tau, width = params.path_flight_tau[path, slot], params.path_flight_jitter[path]
+        return path, params.path_flight_tau[path, slot], params.path_flight_jitter[path]
+
+    if params.target_sampling == "area":
+        path, tau, width = by_area()
+    elif params.target_sampling == "action":
+        path, tau, width = by_action()
+    else:  # "mixed": half of each
+        area = jax.random.bernoulli(jax.random.fold_in(key, 1))
+        path, tau, width = jax.tree.map(lambda a, b: jnp.where(area, a, b), by_area(), by_action())
     p0, v0 = params.path_p0[path], params.path_v0[path]
     jittered = jnp.clip(tau + (jax.random.uniform(k_jit) - 0.5) * width,
                         0.0, params.path_tau_end[path])
@@ -324,6 +337,10 @@ def make_params(n_grid_T: int = 128, n_grid_delta: int = 32, cell: float = 0.05,
     if unknown:
         raise ValueError(f"unknown basketball parameter(s) {unknown}; valid: "
                          f"{sorted(BasketballParams.__dataclass_fields__)}")
+    sampling = overrides.get("target_sampling", "action")
+    if sampling not in ("action", "area", "mixed"):
+        raise ValueError(f"target_sampling={sampling!r} is invalid; choose 'action', 'area' "
+                         "or 'mixed'")
     arm = overrides.pop("arm", None)
     base = BasketballParams(arm=arm if arm is not None else gv.paper_arm(tip_force=BALL_WEIGHT),
                             **overrides)
@@ -357,8 +374,10 @@ class Basketball:
         return normalise(target, params), state
 
     def step(self, key, state: BasketballState, action, params: BasketballParams):
+        action, finite = sanitize_action(action, self.action_size)  # NaN/inf -> 0, flagged invalid
         cost, (T, delta, p0, v0) = throw_cost(params, action, state.target)
-        valid = jnp.isfinite(cost) & jnp.all(jnp.isfinite(p0)) & jnp.all(jnp.isfinite(v0))
+        valid = (finite & jnp.isfinite(cost) & jnp.all(jnp.isfinite(p0))
+                 & jnp.all(jnp.isfinite(v0)))
         reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, cost, 0.0)), 0.0)
         state = state.replace(step=state.step + 1)
         info = {"cost": cost, "T": T, "delta": delta, "valid": valid,
