@@ -308,9 +308,8 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
 def _register() -> None:
     for env_id, task in IDS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=GvsjaxEnv, vector_entry_point=GvsjaxVectorEnv,
-                         kwargs={"task": task},
-                         max_episode_steps=None, disable_env_checker=False)
+            gym.register(id=env_id, entry_point="gvsjax.gym:GvsjaxEnv",
+                         vector_entry_point="gvsjax.gym:GvsjaxVectorEnv", kwargs={"task": task})
 
 
 _register()
