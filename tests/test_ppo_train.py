@@ -190,3 +190,22 @@ def test_collect_marks_invalid_steps_terminal_with_zero_reward():
     assert np.all(np.asarray(traj.done)[invalid])
     assert np.all(np.asarray(traj.reward)[invalid] == 0.0)
     assert np.all(np.isfinite(traj.reward)) and np.all(np.isfinite(traj.obs))
+
+
+def test_target_kl_stops_the_remaining_epochs():
+    env = BanditEnv()
+    env_params = env.default_params()
+    state = init(FAST, env, env_params, jax.random.PRNGKey(0))
+
+    def one(config):
+        _, metrics = make_update(config, env, env_params)(state)
+        return jax.tree.map(lambda x: np.asarray(x)[0], metrics)
+
+    free = one(FAST)  # target_kl = inf: every epoch runs
+    assert int(free["epochs_run"]) == FAST.update_epochs
+    # a bound below the first epoch's own KL (> 0 once the first step moved the policy)
+    tight = one(FAST.replace(target_kl=1e-12))
+    assert int(tight["epochs_run"]) == 1
+    assert float(tight["approx_kl"]) < float(free["approx_kl"])
+    with pytest.raises(ValueError, match="target_kl"):
+        FAST.replace(target_kl=0.0)

@@ -42,6 +42,9 @@ class PPOConfig:
     vf_coef: float = _f(0.5, "value-loss coefficient")
     ent_coef: float = _f(0.01, "entropy-bonus coefficient")
     max_grad_norm: float = _f(0.5, "global gradient-norm clip (inf disables)")
+    target_kl: float = _f(
+        math.inf, "skip an update's remaining epochs once an epoch's mean approx KL exceeds "
+        "1.5 x target_kl (inf: never)")
     l2_coef: float = _f(0.0, "L2 regularisation added to gradients (MATLAB default 1e-4)")
     learning_rate: float = _f(1e-4, "Adam learning rate in phase 1 (paper: 1e-4)")
     anneal_lr: bool = _f(False, "scale the phase's lr by 1 - update/num_updates")
@@ -128,6 +131,7 @@ _CHECKS: dict[str, tuple[Any, str]] = {
     "vf_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
     "ent_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
     "max_grad_norm": (lambda v: v > 0, "float > 0 (inf disables clipping)"),
+    "target_kl": (lambda v: v > 0, "float > 0 (inf disables the early stop)"),
     "l2_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
     "learning_rate": (lambda v: _finite(v) and v > 0, "finite float > 0"),
     "network": (lambda v: v in ("shared", "separate"), "'shared' or 'separate'"),

@@ -271,30 +271,42 @@ def update(
     size = batch.weight.shape[0]
 
     def minibatch_step(carry, minibatch):
-        params, opt_state = carry
+        params, opt_state, stopped = carry
         grads, metrics = jax.grad(ppo_loss, has_aux=True)(
             params, apply_fn, minibatch, clip_eps, config.vf_coef, config.ent_coef,
             config.normalize_advantages, config.clip_value_loss,
         )
-        updates, opt_state = optimizer.update(grads, opt_state, params)
+        updates, new_opt_state = optimizer.update(grads, opt_state, params)
         metrics["grad_norm"] = optax.tree.norm(grads)
-        return (optax.apply_updates(params, updates), opt_state), metrics
+        # after a KL stop the remaining steps leave params and Adam's moments untouched
+        keep = lambda new, old: jax.tree.map(lambda n, o: jnp.where(stopped, o, n), new, old)
+        params = keep(optax.apply_updates(params, updates), params)
+        return (params, keep(new_opt_state, opt_state), stopped), metrics
 
     def epoch(carry, key):
         order = jax.random.permutation(key, size)
         minibatches = jax.tree.map(
             lambda x: x[order].reshape((config.num_minibatches, -1) + x.shape[1:]), batch
         )
-        return jax.lax.scan(minibatch_step, carry, minibatches)
+        ran = ~carry[2]
+        (params, opt_state, stopped), metrics = jax.lax.scan(minibatch_step, carry, minibatches)
+        # early stop (SB3/CleanRL's target_kl): no further epochs on this batch once the
+        # policy moved too far from the one that collected it
+        stopped = stopped | (jnp.mean(metrics["approx_kl"]) > 1.5 * config.target_kl)
+        return (params, opt_state, stopped), (metrics, ran)
 
     opt_state = state.opt_state
     opt_state = opt_state._replace(hyperparams={**opt_state.hyperparams, "learning_rate": lr})
     key, key_epochs = jax.random.split(state.key)
-    (params, opt_state), loss_metrics = jax.lax.scan(
-        epoch, (state.params, opt_state), jax.random.split(key_epochs, config.update_epochs)
+    (params, opt_state, _), (loss_metrics, ran) = jax.lax.scan(
+        epoch, (state.params, opt_state, jnp.zeros((), bool)),
+        jax.random.split(key_epochs, config.update_epochs),
     )
     state = state.replace(params=params, opt_state=opt_state, key=key, update=index + 1)
-    metrics = {k: jnp.mean(v) for k, v in loss_metrics.items()}
+    # loss metrics: means over the epochs that updated the parameters
+    w = ran.astype(jnp.float32)[:, None]
+    metrics = {k: jnp.sum(v * w) / (jnp.sum(w) * v.shape[1]) for k, v in loss_metrics.items()}
+    metrics["epochs_run"] = jnp.sum(ran, dtype=jnp.int32)
     metrics.update(episode_metrics(trajectory))
     metrics.update(
         learning_rate=lr, clip_eps=clip_eps, update=index, episodes=state.episodes
