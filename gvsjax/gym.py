@@ -30,6 +30,9 @@ seed the stream starts from a draw of Gymnasium's ``np_random``. Sub-env i
 of the vector env seeded with s follows exactly the stream of a single env
 seeded with s + i (Gymnasium's convention), so both give the same episodes.
 
+Devices. With several JAX devices the vector env splits its batch over them
+(``gvsjax.sharding``; as many devices as divide ``num_envs``).
+
 Compilation. The jitted reset/step (and their vmapped batch versions) are
 cached per task at module level and take the params as an argument: making
 more envs of a task, or changing a params' numbers, does not recompile.
@@ -47,6 +50,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
+from gvsjax import sharding
 from gvsjax.tasks import make
 
 IDS = {"gvsjax/Basketball-v0": "basketball", "gvsjax/PickPlace-v0": "pickplace"}
@@ -120,14 +124,17 @@ def _single_fns(env) -> tuple[Callable, Callable]:
     return _COMPILED[env.name, "single"]
 
 
-def _vector_fns(env) -> tuple[Callable, Callable]:
+def _vector_fns(env, num_envs: int) -> tuple[Callable, Callable]:
     """Batched reset and same-step-autoreset step: one jitted vmapped call each.
 
     Each sub-env consumes its key stream exactly like a single env whose user
     calls ``reset()`` after every episode end: one key for the step, then one
-    for the reset where the episode ended.
+    for the reset where the episode ended. With several devices the batch is
+    split over them (``gvsjax.sharding``).
     """
-    if (env.name, "vector") not in _COMPILED:
+    mesh = sharding.mesh_for(num_envs)
+    tag = ("vector", None if mesh is None else mesh.size)
+    if (env.name, tag) not in _COMPILED:
         reset1, step1 = _raw_fns(env)
 
         def step_autoreset(key, state, action, params):
@@ -138,10 +145,11 @@ def _vector_fns(env) -> tuple[Callable, Callable]:
             return (pick(key_after_reset, key), pick(obs0, obs),
                     jax.tree.map(pick, state0, state), reward, done, info, obs)
 
-        reset = jax.jit(jax.vmap(reset1, in_axes=(0, None)))
-        step = jax.jit(jax.vmap(step_autoreset, in_axes=(0, 0, 0, None)))
-        _COMPILED[env.name, "vector"] = (reset, step)
-    return _COMPILED[env.name, "vector"]
+        reset = jax.vmap(reset1, in_axes=(0, None))
+        step = jax.vmap(step_autoreset, in_axes=(0, 0, 0, None))
+        _COMPILED[env.name, tag] = (jax.jit(sharding.split_batch(reset, mesh, (0, None))),
+                                    jax.jit(sharding.split_batch(step, mesh, (0, 0, 0, None))))
+    return _COMPILED[env.name, tag]
 
 
 def _info(info: dict, valid_default=True) -> dict[str, Any]:
@@ -273,7 +281,7 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.render_mode = None
-        self._reset, self._step = _vector_fns(self.task)
+        self._reset, self._step = _vector_fns(self.task, self.num_envs)
         self._keys = None
         self._state = None
 
