@@ -94,7 +94,7 @@ def _check_action(action, shape: tuple[int, ...]) -> jax.Array:
 
 # ----------------------------------------------------------------------------- compiled functions
 
-_COMPILED: dict[tuple[str, str], Callable] = {}
+_COMPILED: dict[tuple, Any] = {}  # jitted functions per (task, kind)
 
 
 def _split(key):
