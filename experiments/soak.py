@@ -63,6 +63,11 @@ def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # peak, KB on Linux
 
 
+def live_arrays_mb() -> float:
+    """Bytes held by live JAX arrays (MB): a device-buffer leak shows here, allocator noise does not."""
+    return sum(a.nbytes for a in jax.live_arrays()) / 2**20
+
+
 def throws(n_throws: int, batch: int, seed: int = 0) -> dict:
     env = make("basketball")
     params = env.default_params()
@@ -77,23 +82,24 @@ def throws(n_throws: int, batch: int, seed: int = 0) -> dict:
         return jnp.sum(~info["valid"]), jnp.sum(~jnp.isfinite(info["cost"])), jnp.sum(~jnp.isfinite(reward))
 
     n_batches = math.ceil(n_throws / batch)
-    rss, compiles, bad = [], [], np.zeros(3, int)
+    rss, compiles, live, bad = [], [], [], np.zeros(3, int)
     t0 = time.perf_counter()
     for i, key in enumerate(jax.random.split(jax.random.PRNGKey(seed), n_batches)):
         bad += np.asarray(jax.device_get(run(key)), int)
         rss.append(rss_mb())
         compiles.append(COMPILES[0])
+        live.append(live_arrays_mb())
         if i == 0:
             t_first = time.perf_counter() - t0
     wall = time.perf_counter() - t0
     return {"throws": n_batches * batch, "batch": batch, "invalid": int(bad[0]), "nonfinite_cost": int(bad[1]),
             "nonfinite_reward": int(bad[2]), "first_batch_s": t_first,
             "throws_per_s_after_first": (n_batches - 1) * batch / max(wall - t_first, 1e-9),
-            "rss_mb": rss, "compiles_cumulative": compiles}
+            "rss_mb": rss, "compiles_cumulative": compiles, "live_arrays_mb": live}
 
 
 def trainings(n_runs: int, folder: Path) -> dict:
-    rss, compiles, walls, finals = [], [], [], []
+    rss, compiles, walls, finals, live = [], [], [], [], []
     for i in range(n_runs):
         t0 = time.perf_counter()
         run, overrides = train.parse_args([
@@ -109,7 +115,9 @@ def trainings(n_runs: int, folder: Path) -> dict:
         walls.append(time.perf_counter() - t0)
         rss.append(rss_mb())
         compiles.append(COMPILES[0])
-    return {"runs": n_runs, "wall_s": walls, "rss_mb": rss, "compiles_cumulative": compiles, "finals": finals}
+        live.append(live_arrays_mb())
+    return {"runs": n_runs, "wall_s": walls, "rss_mb": rss, "compiles_cumulative": compiles, "finals": finals,
+            "live_arrays_mb": live}
 
 
 def verdict(phase: dict, tolerance_mb: float) -> dict:
@@ -126,7 +134,8 @@ def verdict(phase: dict, tolerance_mb: float) -> dict:
     trend = slope * (len(later) - 1)
     return {"warmup_iterations": w, "rss_after_warmup_mb": float(rss[w - 1]), "rss_end_mb": float(rss[-1]),
             "rss_max_growth_mb": float(later.max() - later[0]), "rss_slope_mb_per_iter": slope,
-            "rss_trend_mb": trend, "compiles_warmup": comp[w - 1], "compiles_after_warmup": comp[-1] - comp[w - 1],
+            "rss_trend_mb": trend, "live_arrays_mb_after_warmup": phase["live_arrays_mb"][w - 1],
+            "live_arrays_mb_end": phase["live_arrays_mb"][-1], "compiles_warmup": comp[w - 1], "compiles_after_warmup": comp[-1] - comp[w - 1],
             "flat": trend <= tolerance_mb, "no_recompile": comp[-1] == comp[w - 1]}
 
 
@@ -149,7 +158,8 @@ def main(argv=None) -> int:
     print(f"throws: {phase1['throws']} in batches of {phase1['batch']}, invalid {phase1['invalid']}, "
           f"non-finite cost {phase1['nonfinite_cost']}; {phase1['throws_per_s_after_first']:.0f} throws/s; "
           f"RSS {v1['rss_after_warmup_mb']:.0f} -> {v1['rss_end_mb']:.0f} MB after {v1['warmup_iterations']} "
-          f"warm-up batches (trend {v1['rss_trend_mb']:+.1f} MB, max growth {v1['rss_max_growth_mb']:.1f}); "
+          f"warm-up batches (trend {v1['rss_trend_mb']:+.1f} MB, max growth {v1['rss_max_growth_mb']:.1f}; live JAX "
+          f"arrays {v1['live_arrays_mb_after_warmup']:.1f} -> {v1['live_arrays_mb_end']:.1f} MB); "
           f"compilations {v1['compiles_warmup']} in the warm-up, then +{v1['compiles_after_warmup']}")
     with tempfile.TemporaryDirectory() as tmp:
         phase2 = trainings(n_runs, Path(tmp))
@@ -159,7 +169,8 @@ def main(argv=None) -> int:
     print(f"trainings: {n_runs} x 16 updates + eval, {np.mean(phase2['wall_s'][1:] or [0]):.1f} s each after "
           f"the first ({phase2['wall_s'][0]:.1f} s); RSS {v2['rss_after_warmup_mb']:.0f} -> "
           f"{v2['rss_end_mb']:.0f} MB after {v2['warmup_iterations']} warm-up runs (trend "
-          f"{v2['rss_trend_mb']:+.1f} MB, max growth {v2['rss_max_growth_mb']:.1f}); compilations "
+          f"{v2['rss_trend_mb']:+.1f} MB, max growth {v2['rss_max_growth_mb']:.1f}; live JAX arrays "
+          f"{v2['live_arrays_mb_after_warmup']:.1f} -> {v2['live_arrays_mb_end']:.1f} MB); compilations "
           f"+{v2['compiles_after_warmup']} after the warm-up; NaN/inf cells in metrics {nan_cells}")
     checks = {
         "throws_valid_and_finite": phase1["invalid"] == phase1["nonfinite_cost"] == phase1["nonfinite_reward"] == 0,

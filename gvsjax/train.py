@@ -235,7 +235,14 @@ def _int(text: str) -> float:
 
 
 def _tensorboard(out: Path):
-    for module in ("tensorboardX", "torch.utils.tensorboard"):
+    import importlib.util
+
+    for module, needs in (("tensorboardX", ("tensorboardX",)),
+                          ("torch.utils.tensorboard", ("torch", "tensorboard"))):
+        # look before importing: importing torch only to fail on a missing tensorboard
+        # took seconds and ~0.3 GB of RSS per process (soak, issue 6)
+        if any(importlib.util.find_spec(m) is None for m in needs):
+            continue
         try:
             mod = __import__(module, fromlist=["SummaryWriter"])
             return mod.SummaryWriter(str(out / "tb"))
