@@ -30,24 +30,24 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))  # the sibling experiment scripts, imported as modules
 
-import gvsjax  # noqa: E402,F401  (XLA flag and x64 before JAX starts)
+import baseline_basketball
+import baseline_pickplace
+import basketball_figures
+import pickplace_figures
 
-import baseline_basketball  # noqa: E402
-import baseline_pickplace  # noqa: E402
-import basketball_figures  # noqa: E402
-import pickplace_figures  # noqa: E402
-from gvsjax import train  # noqa: E402
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
+from gvsjax import train
 
 SETTINGS = {  # per mode: PPO episodes, evaluation targets, baseline sizes
-    "quick": dict(bb_episodes=40_960, pp_episodes=10_240, eval_targets=200, pp_baseline_pairs=4),
-    "full": dict(bb_episodes=400_000, pp_episodes=120_000, eval_targets=1000, pp_baseline_pairs=16),
+    "quick": {"bb_episodes": 40_960, "pp_episodes": 10_240, "eval_targets": 200, "pp_baseline_pairs": 4},
+    "full": {"bb_episodes": 400_000, "pp_episodes": 120_000, "eval_targets": 1000, "pp_baseline_pairs": 16},
 }
 EVAL_SEED = 1_000_003  # the evaluation targets (train's default for seed 0; never used in training)
 
 # file (relative to the output folder) -> (paper figure or table, what it shows)
 INDEX = {
-    "basketball_workspace.png": ("Fig. 2 (left)", "workspace: flight paths over the action box, "
-                                 "the target window and 2000 targets drawn by reset"),
+    "basketball_workspace.png": ("Fig. 2 (left)", ("workspace: flight paths over the action box, "
+                                                   "the target window and 2000 targets drawn by reset")),
     "basketball_workspace_area.png": ("Fig. 2 (left), variant", "the same with area-uniform targets"),
     "basketball_shapes_T2.png": ("Fig. 2 (right)", "arm at release and ball paths, T = 2 s, several delta"),
     "basketball_run/learning_curve.png": ("Fig. 3", "PPO learning curve (mean episode reward)"),

@@ -18,15 +18,15 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+import jax
+import jax.numpy as jnp
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.animation import FuncAnimation, PillowWriter
 
-import gvsjax as gv  # noqa: E402
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-from gvsjax.tasks import basketball as bb  # noqa: E402
-from gvsjax.tasks import pickplace as pp  # noqa: E402
+import gvsjax as gv
+from gvsjax.tasks import basketball as bb
+from gvsjax.tasks import pickplace as pp
 
 SWING_STEPS, SWING_SAVE = 300, 5  # RK4 steps to release (the task's), keep every 5th state
 
@@ -38,7 +38,7 @@ def _shapes(arm, q) -> np.ndarray:
 
 @jax.jit
 def _swing(params, T, delta):
-    law = lambda t: params.theta_final * (t / T) ** 2  # noqa: E731
+    law = lambda t: params.theta_final * (t / T) ** 2
     tr = gv.simulate(params.arm, delta * T, n_steps=SWING_STEPS, base_angle=law,
                      save_every=SWING_SAVE, check_stability=False)
     return tr.t, tr.q, tr.tip[:, :2], tr.tip_velocity[-1, :2]
@@ -74,12 +74,12 @@ def throw_gif(path, T: float = 2.0, delta: float = 0.9, target=None, params=None
     shapes, p0, t_rel = _shapes(params.arm, q), tip[-1], t[-1]
     tau_end = float(bb.floor_time(jnp.asarray(p0), jnp.asarray(v0), params.g, params.y_floor))
     times = np.linspace(0.0, t_rel + tau_end, frames)
-    ball = lambda tau: p0 + v0 * tau + 0.5 * np.array([0.0, -params.g]) * tau**2  # noqa: E731
+    ball = lambda tau: p0 + v0 * tau + 0.5 * np.array([0.0, -params.g]) * tau**2
     taus = np.linspace(0.0, tau_end, 200)
     path_pts = np.array([ball(s) for s in taus])
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    x0, x1, _, y1 = params.window
+    x0, _, _, y1 = params.window
     ax.axhline(params.y_floor, color="k", lw=1)
     ax.plot(*bb.HOOP, "o", mfc="none", mec="tab:orange", ms=10, mew=2, label="hoop (3-pt)")
     if target is not None:
@@ -100,7 +100,7 @@ def throw_gif(path, T: float = 2.0, delta: float = 0.9, target=None, params=None
 
     def draw(k):
         tk = times[k]
-        i = min(int(round(tk / t_rel * (len(t) - 1))), len(t) - 1)
+        i = min(round(tk / t_rel * (len(t) - 1)), len(t) - 1)
         arm_line.set_data(shapes[i, :, 0], shapes[i, :, 1])
         arm_line.set_alpha(1.0 if tk <= t_rel else 0.35)  # after release: the pose at release
         if tk <= t_rel:
