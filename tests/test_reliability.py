@@ -526,7 +526,7 @@ def test_non_finite_weights_stop_training(bandit_tasks, tmp_path, capsys, monkey
 # ----------------------------------------------------------------------------- killed, resumed, repeated runs
 
 ROOT = Path(__file__).resolve().parents[1]
-N_UPDATES = 150  # 16 throws each; the first checkpoint lands after update 1, the kill right after
+N_UPDATES = 150  # 16 throws each, a checkpoint after every one; b is killed past the middle
 SUB = ["task=basketball", "num_envs=16", "num_minibatches=2", "update_epochs=1",
        f"total_episodes={16 * N_UPDATES}", "progress=false", "eval_targets=0", "updates_per_call=1",
        "checkpoint_every=0", "seed=5"]
@@ -542,29 +542,42 @@ def _finish(proc, timeout=900):
     return proc.returncode, out + err
 
 
+def _saved_step(path):
+    try:
+        return checkpoint.load_raw(path)["step"]
+    except checkpoint.CheckpointError:  # not written yet
+        return -1
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Three trainings of one config started together: a and c run through, b is SIGKILLed
-    right after its first checkpoint (config.json then garbled) and resumed to the end."""
+    """Two trainings of one config started together: a runs through; b is SIGKILLed once its
+    checkpoint is past the middle (config.json then garbled) and resumed to the end."""
     root = tmp_path_factory.mktemp("runs")
-    procs = {name: _start(root / name) for name in "abc"}
+    procs = {name: _start(root / name) for name in "ab"}
     ckpt = root / "b" / "checkpoint.ckpt"
     deadline = time.monotonic() + 900
-    while not ckpt.exists():
+    while _saved_step(ckpt) < N_UPDATES // 2:
         if procs["b"].poll() is not None:
-            pytest.fail(f"run b ended before its first checkpoint: {_finish(procs['b'])}")
-        assert time.monotonic() < deadline, "run b wrote no checkpoint in 900 s"
-        time.sleep(0.005)
+            pytest.fail(f"run b ended before the kill: {_finish(procs['b'])}")
+        assert time.monotonic() < deadline, "run b did not reach the middle in 900 s"
+        time.sleep(0.01)
     running = procs["b"].poll() is None
     os.kill(procs["b"].pid, signal.SIGKILL)
     killed = _finish(procs["b"])
     info = {"running_at_kill": running, "killed_rc": killed[0],
             "killed_step": checkpoint.load_raw(ckpt)["step"],
-            "rows_at_kill": _rows(root / "b" / "metrics.csv")}
+            "rows_at_kill": _complete_rows(root / "b" / "metrics.csv")}
     (root / "b" / "config.json").write_text('{"num_envs": 1, garbled')  # resume must not read it
     procs["b"] = _start(root / "b", "resume=true")
     info["done"] = {name: _finish(p) for name, p in procs.items()}
     return root, info
+
+
+def _complete_rows(path):
+    """Rows of a CSV a kill may have cut inside its last line (that line is left out)."""
+    text = path.read_text()
+    return list(csv.DictReader(text[: text.rfind("\n") + 1].splitlines()))
 
 
 def _comparable(rows):
@@ -576,7 +589,7 @@ def test_killed_run_resumes_and_completes(runs):
     for name, (rc, text) in info["done"].items():
         assert rc == 0, f"run {name}: exit {rc}\n{text}"
     assert info["running_at_kill"] and info["killed_rc"] == -signal.SIGKILL
-    assert 1 <= info["killed_step"] < N_UPDATES  # killed mid-run
+    assert N_UPDATES // 2 <= info["killed_step"] < N_UPDATES  # killed mid-run
     b = root / "b"
     assert checkpoint.load_raw(b / "checkpoint.ckpt")["step"] == N_UPDATES
     updates = [int(r["update"]) for r in _rows(b / "metrics.csv")]
@@ -595,15 +608,12 @@ def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
 
 
 def test_same_config_and_seed_give_bit_identical_runs(runs):
+    # b's rows up to the kill (over half the run) came from another process than a's
     root, info = runs
-    a, c = root / "a", root / "c"
-    rows = _comparable(_rows(a / "metrics.csv"))
-    assert len(rows) == N_UPDATES and rows == _comparable(_rows(c / "metrics.csv"))
-    assert (checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"]
-            == checkpoint.load_raw(c / "checkpoint.ckpt")["train_state"])
-    # b's rows written before the kill came from a third process: also identical
-    before = _comparable([r for r in info["rows_at_kill"] if None not in r.values()])
-    assert before and before == rows[: len(before)]
+    before = _comparable(info["rows_at_kill"])
+    rows = _comparable(_rows(root / "a" / "metrics.csv"))
+    assert len(before) >= N_UPDATES // 2 and len(rows) == N_UPDATES
+    assert before == rows[: len(before)]
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip"])
