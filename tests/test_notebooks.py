@@ -4,7 +4,7 @@ Each runs in a fresh kernel ("python3": ipykernel installed in this environment;
 starts the spec's "python" as sys.executable, so the kernel sees the same packages)
 with its working directory in a temporary folder, so files it writes (e.g. a GIF) stay out of
 the repository. A failing assertion inside a notebook fails the test. Cost: the notebooks'
-compile time dominates (~2 minutes for all three on an idle 2-core machine).
+compile time dominates (~150 s of CPU for all three, measured).
 """
 
 from __future__ import annotations
