@@ -1,7 +1,10 @@
 """Soak test (not part of the default suite): many throws and many trainings in one process.
 
-    python experiments/soak.py            # 100,000 throws + 20 trainings (~3 min idle, 2 cores)
-    python experiments/soak.py --quick    # 20,000 throws + 5 trainings (~1 min)
+    python experiments/soak.py            # 100,000 throws + 20 trainings
+    python experiments/soak.py --quick    # 20,000 throws + 5 trainings
+
+Measured on the shared 2-core machine under a load average of ~14: 658 s and
+200 s (--quick); idle they should take a fraction of that (not measured).
 
 Phase 1 throws random actions at random targets through the basketball env
 (jitted, vmapped ``reset`` + ``step``) in fixed-size batches. Phase 2 runs
