@@ -210,6 +210,7 @@ def normalise(target, params: BasketballParams):
 
 
 def denormalise(obs, params: BasketballParams):
+    """Inverse of ``normalise``: observation in [-1, 1]^2 -> target (2,) m."""
     x0, x1, y0, y1 = params.window
     lo, hi = jnp.array([x0, y0]), jnp.array([x1, y1])
     return lo + (obs + 1.0) * (hi - lo) / 2.0
@@ -366,14 +367,20 @@ class Basketball:
     episode_length = 1
 
     def default_params(self) -> BasketballParams:
+        """The paper's task with its target tables (``make_params()``, cached)."""
         return make_params()
 
     def reset(self, key, params: BasketballParams):
+        """A new reachable target: ``(obs (2,), state)``; table look-up, no simulation."""
         target, source = sample_target(key, params)
         state = BasketballState(target=target, source_action=source, step=jnp.zeros((), jnp.int32))
         return normalise(target, params), state
 
     def step(self, key, state: BasketballState, action, params: BasketballParams):
+        """Throw with ``action`` (2,): ``(obs, state, reward, done=True, info)``.
+
+        ``info``: ``cost`` (m), the physical ``T`` and ``delta``, ``valid``, ``truncated``.
+        """
         action, finite = sanitize_action(action, self.action_size)  # NaN/inf -> 0, flagged invalid
         cost, (T, delta, p0, v0) = throw_cost(params, action, state.target)
         valid = (finite & jnp.isfinite(cost) & jnp.all(jnp.isfinite(p0))
