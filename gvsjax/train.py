@@ -129,6 +129,9 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
         raise ValueError(f"task={run['task']!r} is unknown; choose one of {registered()}")
     if run["preset"] not in PRESETS:
         raise ValueError(f"preset={run['preset']!r} is unknown; choose one of {sorted(PRESETS)}")
+    if "seed" in ppo and not (isinstance(ppo["seed"], int) and 0 <= ppo["seed"] < 2**63):
+        # PPOConfig accepts any int >= 0, but jax.random.PRNGKey overflows at 2**63
+        raise ValueError(f"seed={ppo['seed']!r} is invalid; expected an int in [0, 2**63)")
     if run["resume"] and not run["out"]:
         raise ValueError("resume=true needs out=<run folder> (the folder holding checkpoint.ckpt)")
     return run, ppo
