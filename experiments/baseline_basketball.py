@@ -14,10 +14,10 @@ import json
 import sys
 from pathlib import Path
 
-import gvsjax  # noqa: F401
 import jax
 import numpy as np
 
+import gvsjax  # noqa: F401
 from gvsjax import baseline, evaluate, plots
 from gvsjax.tasks import make
 

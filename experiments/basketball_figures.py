@@ -12,9 +12,9 @@ delta = 0.85, 0.9, 0.95, 1: Fig. 2 right).
 import sys
 from pathlib import Path
 
-import gvsjax  # noqa: F401
 import jax
 
+import gvsjax  # noqa: F401
 from gvsjax import plots
 from gvsjax.tasks import basketball as bb
 

@@ -6,8 +6,9 @@ used, for a range of steps. This is how the default (RK4) was chosen.
     python experiments/integrator_accuracy.py
 """
 
-import gvsjax as gv  # first: configures JAX
 import numpy as np
+
+import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 THETA_F, T = np.deg2rad(210.0), 0.5
 ARM = gv.paper_arm(tip_force=5.886)

@@ -8,8 +8,9 @@ SB3 builds its own vector of single ``gym.make`` envs (``make_vec_env``), so
 this is exactly what a Gymnasium user gets; every env step is one jitted
 throw. ``--vector`` instead hands SB3 the batched ``GvsjaxVectorEnv``
 through a small adapter (``Sb3VecEnv`` below): one jitted call throws for
-all ``n_envs`` at once, several times faster with 8 or more envs. The trained policy is then evaluated like ``gvsjax.evaluate``: its
-deterministic action on ``n_targets`` held-out targets drawn with the keys
+all ``n_envs`` at once, several times faster with 8 or more envs. The
+trained policy is then evaluated like ``gvsjax.evaluate``: its deterministic
+action on ``n_targets`` held-out targets drawn with the keys
 ``split(PRNGKey(eval_seed), n_targets)`` (default seed 1_000_003, the
 evaluation default, never used for training), the same
 ``gvsjax.evaluate.metrics`` (success < 10 cm, within 1 cm, median, p95, ...).
@@ -24,12 +25,12 @@ import json
 import time
 from pathlib import Path
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-import gvsjax.gym  # noqa: F401  (registers gvsjax/Basketball-v0)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
+import gvsjax.gym  # noqa: F401  (registers gvsjax/Basketball-v0)
 from gvsjax.evaluate import metrics, summary, write_throws_csv
 
 

@@ -20,10 +20,10 @@ import json
 import time
 from pathlib import Path
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.evaluate import metrics, rollout
 from gvsjax.ppo import PPOConfig, from_overrides, make_train
 from gvsjax.tasks import make

@@ -46,7 +46,15 @@ jax.config.update("jax_enable_x64", True)
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
 from gvsjax.kinematics import backbone, frames, jacobian_rates, jacobians, tip_state  # noqa: E402
 from gvsjax.model import (  # noqa: E402
-    Joint, Material, PointLoad, PointMass, RigidLink, Robot, SoftLink, StrainBasis, Tendon,
+    Joint,
+    Material,
+    PointLoad,
+    PointMass,
+    RigidLink,
+    Robot,
+    SoftLink,
+    StrainBasis,
+    Tendon,
 )
 from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
 from gvsjax.simulate import Trajectory, simulate, stable_step_estimate  # noqa: E402

@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import time
 
-import gvsjax  # noqa: F401
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import gvsjax  # noqa: F401
 from gvsjax.tasks.basketball import BasketballParams, action_to_physical, throw_cost
 
 FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)

@@ -14,17 +14,17 @@ prescribed DoFs follows by inverse dynamics: tau_a = M_a. qdd - F_a.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
 from gvsjax.kinematics import Point, forward, grid_of, scaled_columns, strain
-from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale, zeros
+from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale
 from gvsjax.model import RigidLink, Robot, SoftLink
-
 
 # ----------------------------------------------------------------------------
 # section properties and constant matrices

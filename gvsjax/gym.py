@@ -40,9 +40,9 @@ more envs of a task, or changing a params' numbers, does not recompile.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import gymnasium as gym
 import jax
 import jax.numpy as jnp
@@ -50,6 +50,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import sharding
 from gvsjax.tasks import make
 

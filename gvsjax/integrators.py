@@ -20,7 +20,8 @@ a converged run, where semi-implicit Euler at 1 ms is 1.6 mm off (gvs-notes 8.3)
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp

@@ -13,15 +13,16 @@ every sample point).
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.lie import add, const, mul, vadd, vscale, zeros
+from gvsjax.lie import const, mul, vadd, vscale, zeros
 from gvsjax.model import RigidLink, Robot, SoftLink, StrainBasis
 
 XI_STAR = (0, 0, 0, 1.0, 0, 0)  # straight, unstretched, unsheared reference strain
@@ -50,7 +51,7 @@ class LinkGrid:
     dX: np.ndarray
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def link_grid(basis: StrainBasis, n_gauss: int, extra: tuple[float, ...] = ()) -> LinkGrid:
     nodes, weights = np.polynomial.legendre.leggauss(n_gauss)
     pts = {0.0: 0.0, 1.0: 0.0}

@@ -27,7 +27,8 @@ Small-angle safety: every coefficient is a function of ``u = |w|^2`` with a
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp

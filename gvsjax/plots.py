@@ -11,11 +11,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gvsjax as gv  # noqa: E402
-import jax  # noqa: E402
 
 
 def _save(fig, path) -> Path:

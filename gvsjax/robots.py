@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from gvsjax.model import Joint, Material, PointLoad, PointMass, Robot, SoftLink, StrainBasis, Tendon

@@ -2,14 +2,14 @@
 
 import math
 
-import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax.tasks import make
+import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 from gvsjax.tasks import basketball as bb
+from gvsjax.tasks import make
 
 G = 9.81
 

@@ -7,11 +7,11 @@ import pytest
 
 gym = pytest.importorskip("gymnasium", reason="gymnasium is the optional extra gvsjax[gym]")
 
-import gvsjax  # noqa: E402
-import gvsjax.gym as gg  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
+import gvsjax  # noqa: E402
+import gvsjax.gym as gg  # noqa: E402
 from gvsjax.tasks import basketball, pickplace  # noqa: E402
 
 

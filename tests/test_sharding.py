@@ -11,10 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import gvsjax  # noqa: F401  (before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import gvsjax  # noqa: F401  (before JAX starts)
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

@@ -9,7 +9,7 @@ them can reach neither the loss nor its gradient.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

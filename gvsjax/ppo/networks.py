@@ -12,7 +12,7 @@ for the physics): observations are cast on entry.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import flax.linen as nn
 import jax.numpy as jnp

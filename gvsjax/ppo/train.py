@@ -26,7 +26,8 @@ the PPO update itself is the single-device computation. One device: no-op.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp

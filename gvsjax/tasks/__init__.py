@@ -4,5 +4,5 @@ from gvsjax.tasks.base import Environment, auto_reset_step, make, register, regi
 
 __all__ = ["Environment", "auto_reset_step", "make", "register", "registered"]
 
-from gvsjax.tasks import basketball  # noqa: E402,F401  (registers "basketball")
-from gvsjax.tasks import pickplace  # noqa: E402,F401  (registers "pickplace")
+# importing a task module registers it ("basketball", "pickplace")
+from gvsjax.tasks import basketball, pickplace  # noqa: E402,F401
