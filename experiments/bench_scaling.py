@@ -18,7 +18,8 @@
 
     python experiments/bench_scaling.py [--quick]
 
-Writes benchmarks/scaling.json, figures/bench_scaling_{batch,model,dt,ppo}.png and prints
+Writes benchmarks/scaling_<section>.json (``--sections batch,model,dt,compile,ppo``; run
+sections in separate processes if you like, ``--replot`` gathers them), figures/bench_scaling_{batch,model,dt,ppo}.png and prints
 Markdown tables.
 """
 
@@ -73,7 +74,7 @@ def vs_batch(batches, n_steps=300):
     @jax.jit
     def env_steps(keys, actions_):
         obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
-        return jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, state, actions_, params)[1]
+        return jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, state, actions_, params)  # all outputs: no DCE
 
     rows = []
     for b in batches:
@@ -139,7 +140,7 @@ def vs_ppo(num_envs_list):
     env_params = env.default_params()
     rows = []
     for n in num_envs_list:
-        config = build_config("basketball", "default", dict(num_envs=n))
+        config = build_config("basketball", "none", dict(num_envs=n))
         state = init(config, env, env_params, jax.random.PRNGKey(0))
         upd = make_update(config, env, env_params, updates_per_call=1)
         t0 = time.perf_counter()
@@ -181,7 +182,7 @@ def compile_times(tasks=("basketball", "pickplace")):
         env_params = env.default_params()
         jax.block_until_ready(env_params)
         params_s = time.perf_counter() - t0
-        config = build_config(task, "default", {})
+        config = build_config(task, "none", {})
         state = init(config, env, env_params, jax.random.PRNGKey(0))
         total = num_updates(config, env.episode_length)
         per_call = max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
@@ -195,13 +196,35 @@ def compile_times(tasks=("basketball", "pickplace")):
     return rows
 
 
+def read_sections(folder):
+    """{section: rows, section + '_load': (start, end)} from the scaling_<section>.json files."""
+    res = {}
+    for name in ("batch", "model", "dt", "compile", "ppo"):
+        path = os.path.join(folder, f"scaling_{name}.json")
+        if os.path.exists(path):
+            with open(path) as fh:
+                d = json.load(fh)
+            res[name], res[name + "_load"] = d["rows"], (d["load_start"], d["load_end"])
+    return res
+
+
 def plot(res):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     os.makedirs(FIG, exist_ok=True)
-    b = res["batch"]
+    if "batch" in res:
+        _plot_batch(plt, res["batch"])
+    if "model" in res:
+        _plot_model(plt, res["model"])
+    if "dt" in res:
+        _plot_dt(plt, res["dt"])
+    if "ppo" in res:
+        _plot_ppo(plt, res["ppo"])
+
+
+def _plot_batch(plt, b):
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     ax.loglog([r["batch"] for r in b], [r["throws_per_s"] for r in b], "o-", label="throws/s (simulate)")
     ax.loglog([r["batch"] for r in b], [r["env_steps_per_s"] for r in b], "s--", label="env-steps/s (env.step)")
@@ -214,7 +237,8 @@ def plot(res):
     fig.savefig(os.path.join(FIG, "bench_scaling_batch.png"), dpi=130)
     plt.close(fig)
 
-    m = res["model"]
+
+def _plot_model(plt, m):
     fig, axs = plt.subplots(1, 2, figsize=(9, 3.6))
     g = [r for r in m if r["n_modes"] == 2]
     k = [r for r in m if r["n_gauss"] == max(5, r["n_modes"] + 2)]
@@ -230,7 +254,8 @@ def plot(res):
     fig.savefig(os.path.join(FIG, "bench_scaling_model.png"), dpi=130)
     plt.close(fig)
 
-    d = res["dt"]
+
+def _plot_dt(plt, d):
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     ax.loglog([r["dt_max_ms"] for r in d], [r["throws_per_s"] for r in d], "o-", label="throws/s")
     ax2 = ax.twinx()
@@ -243,7 +268,8 @@ def plot(res):
     fig.savefig(os.path.join(FIG, "bench_scaling_dt.png"), dpi=130)
     plt.close(fig)
 
-    p = res["ppo"]
+
+def _plot_ppo(plt, p):
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     ax.loglog([r["num_envs"] for r in p], [r["update_s"] for r in p], "o-", label="update wall s")
     ax2 = ax.twinx()
@@ -258,6 +284,10 @@ def plot(res):
 
 
 def print_tables(res):
+    for name in ("batch", "model", "dt", "compile", "ppo"):
+        if name + "_load" in res:
+            print(f"{name}: load {res[name + '_load'][0]} -> {res[name + '_load'][1]}")
+    res = {k: res.get(k, []) for k in ("batch", "model", "dt", "ppo", "compile")}
     print("\n| batch | throws/s | RK4 steps/s | env-steps/s | compile s |")
     print("|---|---|---|---|---|")
     for r in res["batch"]:
@@ -281,27 +311,42 @@ def print_tables(res):
     print("|---|---|---|---|")
     for r in res["compile"]:
         print(f"| {r['task']} | {r['env_params_s']:.1f} | {r['update_compile_s']:.1f} | {r['updates_per_call']} |")
-    print(f"\nload: {res['load_start']} -> {res['load_end']}")
+
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer points")
-    ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "scaling.json"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "benchmarks"), help="folder of scaling_<section>.json")
+    ap.add_argument("--sections", default="batch,model,dt,compile,ppo")
+    ap.add_argument("--ppo-envs", default=None, help="comma-separated num_envs for the ppo section")
+    ap.add_argument("--replot", action="store_true", help="only plot and print the saved JSON files")
     args = ap.parse_args()
-    res = dict(load_start=load_average(), jax=jax.__version__)
-    print("load at start:", res["load_start"])
+    if args.replot:
+        res = read_sections(args.out)
+        plot(res)
+        print_tables(res)
+        return
+    print("load at start:", load_average())
     q = args.quick
-    res["batch"] = vs_batch([1, 16, 256, 1024, 4096] if q else [1, 4, 16, 64, 256, 1024, 4096, 16384])
-    res["model"] = vs_model([(2, 3), (2, 5), (2, 8), (2, 12), (1, 5), (3, 5), (4, 6), (6, 8)] if q else
-                            [(2, 3), (2, 5), (2, 8), (2, 12), (2, 16), (1, 5), (3, 5), (4, 6), (6, 8), (8, 10)])
-    res["dt"] = vs_dt([240, 300, 600] if q else [200, 240, 300, 400, 600, 1200])
-    res["ppo"] = vs_ppo([256, 1024, 4096] if q else [64, 256, 1024, 4096, 16384])
-    res["compile"] = compile_times()
-    res["load_end"] = load_average()
-    os.makedirs(os.path.dirname(args.json), exist_ok=True)
-    with open(args.json, "w") as fh:
-        json.dump(res, fh, indent=2)
+    sections = [
+        ("batch", lambda: vs_batch([1, 16, 256, 1024, 4096] if q else [1, 4, 16, 64, 256, 1024, 4096, 16384])),
+        ("model", lambda: vs_model([(2, 3), (2, 5), (2, 8), (2, 12), (1, 5), (3, 5), (4, 6), (6, 8)] if q else
+                                   [(2, 3), (2, 5), (2, 8), (2, 12), (2, 16), (1, 5), (3, 5), (4, 6), (6, 8)])),
+        ("dt", lambda: vs_dt([240, 300, 600] if q else [200, 240, 300, 400, 600, 1200])),
+        ("compile", compile_times),
+        ("ppo", lambda: vs_ppo([int(n) for n in args.ppo_envs.split(",")] if args.ppo_envs else
+                               [256, 1024, 4096] if q else [64, 256, 1024, 4096, 16384])),
+    ]
+    os.makedirs(args.out, exist_ok=True)
+    for name, run in sections:  # one JSON per section: sections can run in separate processes
+        if name not in args.sections.split(","):
+            continue
+        out = dict(load_start=load_average(), jax=jax.__version__, rows=run())
+        out["load_end"] = load_average()
+        with open(os.path.join(args.out, f"scaling_{name}.json"), "w") as fh:
+            json.dump(out, fh, indent=2)
+    res = read_sections(args.out)
     plot(res)
     print_tables(res)
 
