@@ -120,7 +120,7 @@ def _finite(v: float) -> bool:
 
 
 _CHECKS: dict[str, tuple[Any, str]] = {
-    "seed": (lambda v: v >= 0, "integer >= 0"),
+    "seed": (lambda v: 0 <= v < 2**63, "integer in [0, 2**63)"),
     "num_envs": (_positive_int, "integer >= 1"),
     "num_steps": (_positive_int, "integer >= 1"),
     "total_episodes": (_positive_int, "integer >= 1"),
@@ -173,7 +173,7 @@ def _coerce(name: str, typ: Any, value: Any) -> Any:
 
 
 def _type_name(typ: Any) -> str:
-    return getattr(typ, "__name__", None) if typ in (bool, int, float, str) else "tuple of int"
+    return typ.__name__ if typ in (bool, int, float, str) else "tuple of int"
 
 
 def parse_value(name: str, text: str) -> Any:

@@ -56,11 +56,12 @@ import numpy as np
 from flax import struct
 
 import gvsjax as gv
-from gvsjax.tasks.base import register, sanitize_action
+from gvsjax.tasks.base import bounded, register, sanitize_action
 
 BALL_WEIGHT = 5.886  # N, a 0.6 kg ball under g = 9.81
 HOOP = (-6.75, 1.1)  # m, the three-point shot relative to the arm's base
 WINDOW = (-8.0, -1.0, -1.95, 4.0)  # m: x_min, x_max, y_min (the floor), y_max
+RELEASE_SPEED_BOUND = 100.0  # m/s per component; beyond it the throw counts as diverged
 
 
 @struct.dataclass
@@ -383,8 +384,9 @@ class Basketball:
         """
         action, finite = sanitize_action(action, self.action_size)  # NaN/inf -> 0, flagged invalid
         cost, (T, delta, p0, v0) = throw_cost(params, action, state.target)
+        # 100 m/s: ~6x the fastest release of the whole action box (15.8 m/s)
         valid = (finite & jnp.isfinite(cost) & jnp.all(jnp.isfinite(p0))
-                 & jnp.all(jnp.isfinite(v0)))
+                 & bounded(v0, RELEASE_SPEED_BOUND))
         reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, cost, 0.0)), 0.0)
         state = state.replace(step=state.step + 1)
         info = {"cost": cost, "T": T, "delta": delta, "valid": valid,
