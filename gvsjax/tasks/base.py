@@ -46,13 +46,19 @@ class Environment(Protocol):
     action_size: int
     episode_length: int  # number of steps after which ``done`` is True
 
-    def default_params(self) -> PyTree: ...
+    def default_params(self) -> PyTree:
+        """The task's parameters as the paper sets them (an immutable pytree)."""
+        ...
 
-    def reset(self, key: jax.Array, params: PyTree) -> tuple[jax.Array, PyTree]: ...
+    def reset(self, key: jax.Array, params: PyTree) -> tuple[jax.Array, PyTree]:
+        """A new episode: ``(obs, state)``."""
+        ...
 
     def step(
         self, key: jax.Array, state: PyTree, action: jax.Array, params: PyTree
-    ) -> tuple[jax.Array, PyTree, jax.Array, jax.Array, dict[str, jax.Array]]: ...
+    ) -> tuple[jax.Array, PyTree, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """Apply ``action``: ``(obs, state, reward, done, info)`` (see the module docstring)."""
+        ...
 
 
 def sanitize_action(action: jax.Array, size: int | None = None) -> tuple[jax.Array, jax.Array]:
@@ -110,4 +116,5 @@ def make(name: str) -> Environment:
 
 
 def registered() -> list[str]:
+    """The names ``make`` accepts, sorted."""
     return sorted(_REGISTRY)

@@ -56,6 +56,7 @@ table look-up: it never simulates.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -91,11 +92,12 @@ class PickPlaceParams:
     n_steps: int = struct.field(pytree_node=False, default=500)  # RK4 steps per 5 s step
     split: str = struct.field(pytree_node=False, default="train")  # "train", "test" or "all"
     n_test: int = struct.field(pytree_node=False, default=0)  # held-out rows at the table's end
-    # target tables, P rows (see module docstring)
-    pick: jax.Array = None  # (P, 2) m, tip at the end of step 1
-    place: jax.Array = None  # (P, 2) m, tip at the end of step 2
-    pick_action: jax.Array = None  # (P, 2) in [-1, 1]
-    place_action: jax.Array = None  # (P, 2) in [-1, 1]
+    # target tables, P rows (see module docstring); None in a bare PickPlaceParams(...),
+    # whose step works but whose reset needs them
+    pick: jax.Array | None = None  # (P, 2) m, tip at the end of step 1
+    place: jax.Array | None = None  # (P, 2) m, tip at the end of step 2
+    pick_action: jax.Array | None = None  # (P, 2) in [-1, 1]
+    place_action: jax.Array | None = None  # (P, 2) in [-1, 1]
 
 
 @struct.dataclass
@@ -210,12 +212,20 @@ def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
         tables = _CACHE[table_key]
     radii = np.hypot(*np.concatenate([tables["pick"], tables["place"]]).T)
     band = overrides.get("radius_range", (float(radii.min()), float(radii.max())))
-    return base.replace(radius_range=band, **{k: jnp.asarray(v) for k, v in tables.items()})
+    arrays: dict[str, Any] = {k: jnp.asarray(v) for k, v in tables.items()}  # the table fields
+    return dataclasses.replace(base, radius_range=band, **arrays)
+
+
+def _table(x: jax.Array | None) -> jax.Array:
+    if x is None:
+        raise ValueError("params has no target tables (a bare PickPlaceParams); build it with "
+                         "make_params() or the env's default_params()")
+    return x
 
 
 def row_range(params: PickPlaceParams) -> tuple[int, int]:
     """[lo, hi) rows of the table that ``reset`` draws from."""
-    n = params.pick.shape[0]
+    n = _table(params.pick).shape[0]
     return {"train": (0, n - params.n_test), "test": (n - params.n_test, n),
             "all": (0, n)}[params.split]
 
@@ -224,7 +234,7 @@ def sample_targets(key, params: PickPlaceParams):
     """A reachable (pick, place) pair (2, 2) m and its table row."""
     lo, hi = row_range(params)
     row = jax.random.randint(key, (), lo, hi)
-    return jnp.stack([params.pick[row], params.place[row]]), row
+    return jnp.stack([_table(params.pick)[row], _table(params.place)[row]]), row
 
 
 # ----------------------------------------------------------------------------- env
@@ -264,9 +274,11 @@ class PickPlace:
     episode_length = 2
 
     def default_params(self) -> PickPlaceParams:
+        """The paper's task with its target-pair table (``make_params()``)."""
         return make_params()
 
     def reset(self, key, params: PickPlaceParams):
+        """A new episode on a random training pair (pick, place): ``(obs, state)``."""
         targets, _ = sample_targets(key, params)
         state = _reset_state(targets)
         return observe(state, params), state
@@ -288,6 +300,7 @@ class PickPlace:
     qd_bound = 100.0
 
     def step(self, key, state: PickPlaceState, action, params: PickPlaceParams):
+        """One 5 s motion towards the current target: ``(obs, state, reward, done, info)``."""
         action, finite = sanitize_action(action, self.action_size)  # NaN/inf -> 0, flagged invalid
         theta_f, tension = action_to_physical(action, params)
         tr = run_step(params, state.q, state.qd, state.tension, theta_f, tension)
@@ -298,8 +311,8 @@ class PickPlace:
                  & bounded(qd, self.qd_bound) & jnp.isfinite(d))
         # --- end reliability edit ---
         reward = jnp.where(valid, reward_of(jnp.where(valid, d, 0.0), params), 0.0)
-        new = state.replace(q=jnp.where(valid, q, 0.0), qd=jnp.where(valid, qd, 0.0),
-                            tension=tension, step=state.step + 1)
+        new = dataclasses.replace(state, q=jnp.where(valid, q, 0.0), qd=jnp.where(valid, qd, 0.0),
+                                  tension=tension, step=state.step + 1)
         done = (new.step >= self.episode_length) | ~valid
         info = {"distance": d, "theta_final": theta_f, "tension": tension,
                 "tip_x": tip[0], "tip_y": tip[1], "valid": valid,
@@ -312,12 +325,12 @@ class PickPlace:
 
 def eval_targets(params: PickPlaceParams, n: int, seed: int) -> np.ndarray:
     """(n, 2, 2) target pairs from the held-out rows (distinct while n <= n_test)."""
-    n_rows = params.pick.shape[0]
+    n_rows = _table(params.pick).shape[0]
     lo = n_rows - params.n_test
     rng = np.random.default_rng(seed)
     rows = lo + (rng.permutation(params.n_test)[:n] if n <= params.n_test
                  else rng.integers(0, params.n_test, n))
-    return np.stack([np.asarray(params.pick)[rows], np.asarray(params.place)[rows]], 1)
+    return np.stack([np.asarray(_table(params.pick))[rows], np.asarray(_table(params.place))[rows]], 1)
 
 
 def rollout(params: PickPlaceParams, policy, targets):
