@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -166,7 +167,7 @@ def pickplace_gif(path, actions, targets=None, params=None, save_every: int = 25
     return _save(fig, draw, len(t), path, fps, dpi)
 
 
-KEYS = {"task": "basketball", "out": "", "T": 2.0, "delta": 0.9, "target": "",
+KEYS: dict[str, Any] = {"task": "basketball", "out": "", "T": 2.0, "delta": 0.9, "target": "",
         "action": "0.5,0.6,-0.7,0.2", "frames": 60, "fps": 0, "dpi": 80}
 USAGE = __doc__.strip() + """
 

@@ -16,6 +16,7 @@ an exact answer).
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -70,7 +71,7 @@ def make_solver(params: BasketballParams, n_iters: int = 12, n_starts: int = 3, 
 
 
 def solve_targets(params: BasketballParams, targets: np.ndarray, batch: int = 250,
-                  **solver_kw) -> dict[str, np.ndarray]:
+                  **solver_kw) -> dict[str, Any]:
     """Solve every target (n, 2) in batches; returns actions, T, delta, miss (m), seconds."""
     solve = make_solver(params, **solver_kw)
     t0 = time.perf_counter()

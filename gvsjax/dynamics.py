@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import Point, forward, grid_of, scaled_columns, strain
+from gvsjax.kinematics import Point, coords, forward, grid_of, scaled_columns, strain
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale
 from gvsjax.model import RigidLink, Robot, SoftLink
 
@@ -225,6 +225,8 @@ def full_matrix(M, n: int) -> jnp.ndarray:
 def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     """Kinetic, elastic and potential (gravity and constant world-fixed loads) energy, J."""
     n = robot.n_dofs
+    coords(robot, q, "q")  # shape checks only: q and qd are used as given
+    coords(robot, qd, "qd")
     qs = [q[i] for i in range(n)]
     qds = [qd[i] for i in range(n)]
     points = forward(robot, qs, qds, with_psi=False)

@@ -159,7 +159,7 @@ def _info(info: dict, valid_default=True) -> dict[str, Any]:
     return out
 
 
-def _seed_key(seed: int, rng: np.random.Generator | None) -> jax.Array:
+def _seed_key(seed: int | None, rng: np.random.Generator) -> jax.Array:
     if seed is None:
         seed = int(rng.integers(0, 2**63 - 1))
     return jax.random.PRNGKey(seed)
@@ -172,6 +172,9 @@ class GvsjaxEnv(gym.Env):
     """A gvsjax task as a ``gymnasium.Env`` (see the module docstring)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    # set in __init__; gymnasium types them as any Space
+    observation_space: spaces.Box
+    action_space: spaces.Box
 
     def __init__(self, task: str = "basketball", env_params=None, render_mode: str | None = None):
         if render_mode not in (None, "rgb_array"):
@@ -181,10 +184,10 @@ class GvsjaxEnv(gym.Env):
         self.observation_space, self.action_space = _spaces(self.task)
         self.render_mode = render_mode
         self._reset, self._step = _single_fns(self.task)
-        self._key = None
-        self._state = None
+        self._key: jax.Array | None = None
+        self._state: Any = None  # the task's state pytree
         self._done = True
-        self._last = None  # (state before, action, info) of the last step, for render
+        self._last: tuple | None = None  # (state before, action, info) of the last step, for render
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -219,17 +222,20 @@ class GvsjaxEnv(gym.Env):
 def _render(task, params, state, last) -> np.ndarray:
     """An RGB image (H, W, 3) uint8: basketball: the target and the last throw's
     flight from release; pickplace: the arm's backbone and both targets."""
-    import matplotlib
+    # a figure on its own Agg canvas: headless, and neither pyplot's figure list nor
+    # the user's matplotlib backend is touched
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
 
-    matplotlib.use("Agg")  # headless, before pyplot
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(4, 4), dpi=80)
+    fig = Figure(figsize=(4, 4), dpi=80)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.subplots()
     if task.name == "basketball":
         from gvsjax.tasks import basketball as bb
 
         x0, x1, y0, y1 = params.window
-        ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ls=":", color="0.6"))
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ls=":", color="0.6"))
         ax.plot(*np.asarray(state.target), "rx", ms=10, label="target")
         if last is not None:
             if (task.name, "release") not in _COMPILED:
@@ -248,10 +254,8 @@ def _render(task, params, state, last) -> np.ndarray:
         ax.set(xlim=(-1.2, 1.2), ylim=(-1.2, 1.2))
     ax.set_aspect("equal")
     ax.legend(loc="upper right", fontsize=7)
-    fig.canvas.draw()
-    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
-    return image
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
 
 # ----------------------------------------------------------------------------- vector env
@@ -268,6 +272,9 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
     """
 
     metadata = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP, "render_modes": []}
+    # set in __init__; gymnasium types them as any Space
+    single_observation_space: spaces.Box
+    single_action_space: spaces.Box
 
     def __init__(self, num_envs: int = 1, task: str = "basketball", env_params=None,
                  render_mode: str | None = None):
@@ -283,15 +290,18 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.render_mode = None
         self._reset, self._step = _vector_fns(self.task, self.num_envs)
-        self._keys = None
-        self._state = None
+        self._keys: jax.Array | None = None
+        self._state: Any = None  # the task's state pytree, batched
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
         if seed is not None or self._keys is None:
             if seed is None:
                 self._np_random, _ = gym.utils.seeding.np_random(None)
                 seed = int(self._np_random.integers(0, 2**63 - self.num_envs - 1))
-            seeds = [seed + i for i in range(self.num_envs)] if np.isscalar(seed) else list(seed)
+            if isinstance(seed, (list, tuple, np.ndarray)):
+                seeds = list(seed)
+            else:
+                seeds = [seed + i for i in range(self.num_envs)]
             if len(seeds) != self.num_envs:
                 raise ValueError(f"seed has {len(seeds)} entries; expected num_envs={self.num_envs}")
             self._keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds, jnp.int64))
@@ -301,7 +311,7 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
     def step(self, actions):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        a = _check_action(actions, self.action_space.shape)
+        a = _check_action(actions, (self.num_envs, *self.single_action_space.shape))
         self._keys, obs, self._state, reward, done, info, final_obs = self._step(
             self._keys, self._state, a, self.env_params)
         info = _info(info)

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import chex
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -221,20 +222,29 @@ def _rigid_link(li, link: RigidLink, state, points):
 # array-level helpers
 
 
-def _scalars(x: jax.Array) -> list:
+def coords(robot: Robot, x: Any, name: str) -> jax.Array:
+    """``x`` as an array of the robot's n coordinates. A wrong length would otherwise
+    be silently cut or padded by the recursion; the check runs at trace time only."""
+    x = jnp.asarray(x)
+    chex.assert_shape(x, (robot.n_dofs,), custom_message=f"{name} must have shape (n_dofs,) = ({robot.n_dofs},)")
+    return x
+
+
+def _scalars(robot: Robot, x: Any, name: str) -> list:
+    x = coords(robot, x, name)
     return [x[i] for i in range(x.shape[0])]
 
 
 def backbone(robot: Robot, q: jax.Array) -> jax.Array:
     """World positions of every sample point along the robot, shape (n_points, 3)."""
-    q_s = _scalars(jnp.asarray(q))
+    q_s = _scalars(robot, q, "q")
     pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
     return jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
 
 
 def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World rotations (n_points, 3, 3) and positions (n_points, 3) of every sample point."""
-    q_s = _scalars(jnp.asarray(q))
+    q_s = _scalars(robot, q, "q")
     pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
     R = jnp.stack([jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R]) for pt in pts])
     p = jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
@@ -243,7 +253,7 @@ def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World position (3,) and linear velocity (3,) of the robot's last point."""
-    pt = forward(robot, _scalars(jnp.asarray(q)), _scalars(jnp.asarray(qd)), with_psi=False)[-1]
+    pt = forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False)[-1]
     vel = lie.matvec(pt.R, pt.eta[3:])
     return (
         jnp.stack([lie.as_array(a) for a in pt.p]),
@@ -253,7 +263,7 @@ def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax
 
 def jacobians(robot: Robot, q: jax.Array) -> jax.Array:
     """Body-frame geometric Jacobians at every sample point, shape (n_points, 6, n)."""
-    q_s = _scalars(jnp.asarray(q))
+    q_s = _scalars(robot, q, "q")
     pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
     return jnp.stack(
         [jnp.stack([jnp.stack([lie.as_array(a) for a in col]) for col in pt.J], axis=1) for pt in pts]

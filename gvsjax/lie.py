@@ -289,7 +289,7 @@ def dexp_and_rate(x: Vec, xd: Vec, ys: Sequence[Vec], rate_of: Vec | None):
     udot = mul(2.0, dot(w, wd))
     planar = _is_planar(x, xd)
     if planar:  # T = I + A ad + B ad^2, exact when w.v = 0
-        fns = (_a, _b)
+        fns: tuple[Any, ...] = (_a, _b)
     else:  # T = I + f1 ad + f2 ad^2 + f3 ad^3 + f4 ad^4
         fns = ("f1", "f2", _f3, _f4)
     coefs = []

@@ -49,7 +49,7 @@ def paper_arm(**overrides: Any) -> Robot:
     require(p["n_gauss"] >= p["n_modes"], "n_gauss", p["n_gauss"],
             f">= n_modes={p['n_modes']} so that the stiffness is integrated exactly")
     require(p["basis"] in ("monomial", "legendre"), "basis", p["basis"], "'monomial' or 'legendre'")
-    tendons = ()
+    tendons: tuple[Tendon, ...] = ()
     if p["tendon_offset"] is not None:
         finite("tendon_offset", p["tendon_offset"])
         if concrete(p["tendon_offset"]) and concrete(p["radius"]):  # (issue 6) the user's name

@@ -194,8 +194,7 @@ def simulate(
             ("tendon_force", tendon_force, (1, len(robot.tendons))))
     for name, fn, sizes in laws:
         if callable(fn):  # abstract evaluation only: catches a wrong output shape without compiling
-            out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), jnp.float64 if jax.config.x64_enabled
-                                                          else jnp.float32))
+            out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), jax.dtypes.canonicalize_dtype(jnp.float64)))
             size = math.prod(out.shape) if hasattr(out, "shape") else None
             allowed = " or ".join(map(str, sorted(set(sizes))))
             require(size in sizes, name, fn, f"a callable t -> {allowed} value(s); "

@@ -151,3 +151,10 @@ def test_unknown_sampling_mode_is_a_clear_error():
     with pytest.raises(ValueError, match="target_sampling='grid' is invalid"):
         bb.make_params(target_sampling="grid")
 
+
+
+def test_reset_without_target_tables_says_how_to_build_them():
+    env = make("basketball")
+    bare = bb.BasketballParams(arm=gvsjax.paper_arm(tip_force=bb.BALL_WEIGHT))  # step works, reset needs tables
+    with pytest.raises(ValueError, match="no target tables.*make_params"):
+        env.reset(jax.random.PRNGKey(0), bare)

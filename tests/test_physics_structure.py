@@ -158,3 +158,16 @@ def test_jacobians_map_rates_to_twists():
     h = 1e-6
     fd = (gv.jacobians(robot, q + h * qd) - gv.jacobians(robot, q - h * qd)) / (2 * h)
     np.testing.assert_allclose(gv.jacobian_rates(robot, q, qd), fd, atol=1e-7)
+
+
+@pytest.mark.parametrize("fn, args", [
+    (gv.backbone, ("q",)), (gv.frames, ("q",)), (gv.jacobians, ("q",)),
+    (gv.tip_state, ("q", "qd")), (gv.energy, ("q", "qd")),
+])
+def test_wrong_coordinate_length_is_named(fn, args):
+    arm = gv.paper_arm()
+    n = arm.n_dofs
+    for bad in args:  # one argument of length n + 1, the others right
+        values = [np.zeros(n + 1) if name == bad else np.zeros(n) for name in args]
+        with pytest.raises(AssertionError, match=rf"{bad} must have shape \(n_dofs,\) = \({n},\)"):
+            fn(arm, *values)

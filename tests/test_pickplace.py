@@ -134,3 +134,10 @@ def test_reset_draws_table_rows_of_its_split(env_and_params):
         assert rows <= set(range(lo, hi))
         np.testing.assert_allclose(obs[:, :6], 0.0)
         np.testing.assert_allclose(obs[:, 8], 0.0)
+
+
+def test_reset_without_target_tables_says_how_to_build_them():
+    env = make("pickplace")
+    bare = pp.PickPlaceParams(arm=gvsjax.paper_arm(tendon_offset=0.025))  # step works, reset needs tables
+    with pytest.raises(ValueError, match="no target tables.*make_params"):
+        env.reset(jax.random.PRNGKey(0), bare)

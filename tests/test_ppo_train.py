@@ -209,3 +209,13 @@ def test_target_kl_stops_the_remaining_epochs():
     assert float(tight["approx_kl"]) < float(free["approx_kl"])
     with pytest.raises(ValueError, match="target_kl"):
         FAST.replace(target_kl=0.0)
+
+
+def test_policy_action_names_a_wrong_obs_width_and_a_missing_key():
+    net = make_network(FAST, 2)
+    params = net.init(jax.random.PRNGKey(0), jnp.zeros(5))
+    assert policy_action(params, net.apply, jnp.zeros((3, 5))).shape == (3, 2)
+    with pytest.raises(AssertionError, match=r"obs must be \(\.\.\., obs_size=5\)"):
+        policy_action(params, net.apply, jnp.zeros((3, 4)))
+    with pytest.raises(ValueError, match="key=None is invalid"):
+        policy_action(params, net.apply, jnp.zeros(5), deterministic=False)

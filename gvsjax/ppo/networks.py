@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import flax.linen as nn
 import jax.numpy as jnp
@@ -118,9 +119,18 @@ class SeparateActorCritic(nn.Module):
         return mean, log_std, _value_head(critic)
 
 
+def obs_size(params: Any) -> int | None:
+    """The observation width ``params`` of either network were initialised for, read
+    from the first trunk layer's kernel; None for a parameter tree of another shape."""
+    try:
+        return int(params["params"]["MLP_0"]["Dense_0"]["kernel"].shape[0])
+    except (KeyError, TypeError, AttributeError, IndexError):
+        return None
+
+
 def make_network(config: PPOConfig, action_size: int) -> nn.Module:
     """The actor-critic selected by ``config.network``; use its ``.init``/``.apply``."""
-    common = dict(
+    common: dict[str, Any] = dict(
         action_size=action_size,
         activation=config.activation,
         std_mode=config.std_mode,

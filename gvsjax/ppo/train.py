@@ -25,10 +25,12 @@ the PPO update itself is the single-device computation. One device: no-op.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from typing import Any
 
+import chex
 import jax
 import jax.numpy as jnp
 import optax
@@ -37,7 +39,7 @@ from flax import struct
 from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import Batch, gae, gaussian_log_prob, ppo_loss
-from gvsjax.ppo.networks import make_network
+from gvsjax.ppo.networks import make_network, obs_size
 from gvsjax.tasks.base import auto_reset_step
 
 PyTree = Any
@@ -158,7 +160,9 @@ def collect(
     env must itself report ``done`` on such a step (base.py's contract) so that
     ``auto_reset_step`` replaces the diverged state.
     """
-    apply_fn = make_network(config, env.action_size).apply
+    # flax types apply() as maybe returning (output, mutated variables) too; without
+    # mutable= it returns the output: (mean, log_std, value)
+    apply_fn: Callable[..., Any] = make_network(config, env.action_size).apply
     n = config.num_envs
     envs, _ = _shardings(config)
     # each device steps its own slice of the envs (no-op on one device)
@@ -200,7 +204,8 @@ def collect(
         # all keys split up front: each random call inside the scan costs compile time
         jax.random.split(key_steps, (config.num_steps, n + 1)),
     )
-    state = state.replace(
+    state = dataclasses.replace(
+        state,
         env_state=env_state,
         last_obs=obs,
         key=key,
@@ -245,7 +250,7 @@ def update(
     ``update`` (index of this update) and ``episodes`` (total so far).
     ``learning_rate``: see ``phase_hyperparams``.
     """
-    apply_fn = make_network(config, env.action_size).apply
+    apply_fn: Callable[..., Any] = make_network(config, env.action_size).apply  # see collect
     optimizer = make_optimizer(config)
     lr, clip_eps = phase_hyperparams(config, env.episode_length, state.update, learning_rate)
 
@@ -303,7 +308,7 @@ def update(
         epoch, (state.params, opt_state, jnp.zeros((), bool)),
         jax.random.split(key_epochs, config.update_epochs),
     )
-    state = state.replace(params=params, opt_state=opt_state, key=key, update=index + 1)
+    state = dataclasses.replace(state, params=params, opt_state=opt_state, key=key, update=index + 1)
     # loss metrics: means over the epochs that updated the parameters
     w = ran.astype(jnp.float32)[:, None]
     metrics = {k: jnp.sum(v * w) / (jnp.sum(w) * v.shape[1]) for k, v in loss_metrics.items()}
@@ -382,7 +387,13 @@ def policy_action(
     ``apply_fn`` is ``make_network(config, env.action_size).apply``; ``key`` is
     required when ``deterministic`` is False.
     """
+    if not deterministic and key is None:
+        raise ValueError("key=None is invalid: expected a PRNG key when deterministic=False")
+    width = obs_size(params)
+    if width is not None:  # trace-time check: an obs of another task names both widths
+        chex.assert_shape(obs, (..., width), custom_message=f"obs must be (..., obs_size={width}), "
+                          "the width the policy params were initialised for")
     mean, log_std, _ = apply_fn(params, obs)
-    if not deterministic:
+    if not deterministic and key is not None:
         mean = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape, mean.dtype)
     return jnp.clip(mean, -1.0, 1.0)

@@ -47,6 +47,7 @@ simulates. ``experiments/basketball_figures.py`` plots the workspace.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -81,18 +82,19 @@ class BasketballParams:
     # "area": uniform in area over the cells the paths cover (harder: more far targets);
     # "mixed": either of the two with probability 1/2
     target_sampling: str = struct.field(pytree_node=False, default="action")
-    # target tables (see module docstring); shapes: P grid throws, C covered cells, K per cell
-    path_p0: jax.Array = None  # (P, 2) m
-    path_v0: jax.Array = None  # (P, 2) m/s
-    path_action: jax.Array = None  # (P, 2) in [-1, 1]
-    path_tau_end: jax.Array = None  # (P,) s, floor time
-    path_jitter: jax.Array = None  # (P,) s, flight-time jitter width
-    cell_path: jax.Array = None  # (C, K) int32 path index
-    cell_tau: jax.Array = None  # (C, K) s flight time
-    cell_count: jax.Array = None  # (C,) int32 samples stored (1..K)
-    path_flight_tau: jax.Array = None  # (P, M) s, in-window flight times per path
-    path_log_weight: jax.Array = None  # (P,) log probability weight of a path (action-uniform)
-    path_flight_jitter: jax.Array = None  # (P,) s, spacing of path_flight_tau
+    # target tables (see module docstring); shapes: P grid throws, C covered cells, K per cell;
+    # None in a bare BasketballParams(...), whose step works but whose reset needs them
+    path_p0: jax.Array | None = None  # (P, 2) m
+    path_v0: jax.Array | None = None  # (P, 2) m/s
+    path_action: jax.Array | None = None  # (P, 2) in [-1, 1]
+    path_tau_end: jax.Array | None = None  # (P,) s, floor time
+    path_jitter: jax.Array | None = None  # (P,) s, flight-time jitter width
+    cell_path: jax.Array | None = None  # (C, K) int32 path index
+    cell_tau: jax.Array | None = None  # (C, K) s flight time
+    cell_count: jax.Array | None = None  # (C,) int32 samples stored (1..K)
+    path_flight_tau: jax.Array | None = None  # (P, M) s, in-window flight times per path
+    path_log_weight: jax.Array | None = None  # (P,) log probability weight of a path (action-uniform)
+    path_flight_jitter: jax.Array | None = None  # (P,) s, spacing of path_flight_tau
 
 
 @struct.dataclass
@@ -222,20 +224,27 @@ def _in_window(p, window):
     return (p[..., 0] >= x0) & (p[..., 0] <= x1) & (p[..., 1] >= y0) & (p[..., 1] <= y1)
 
 
+def _table(x: jax.Array | None) -> jax.Array:
+    if x is None:
+        raise ValueError("params has no target tables (a bare BasketballParams); build it with "
+                         "make_params() or the env's default_params()")
+    return x
+
+
 def sample_target(key, params: BasketballParams):
     """A reachable target (2,) m and the grid action whose path passes through it."""
     k_path, k_slot, k_jit = jax.random.split(key, 3)
 
     def by_area():
-        cell = jax.random.randint(k_path, (), 0, params.cell_count.shape[0])
-        slot = jax.random.randint(k_slot, (), 0, params.cell_count[cell])
-        path, tau = params.cell_path[cell, slot], params.cell_tau[cell, slot]
-        return path, tau, params.path_jitter[path]
+        cell = jax.random.randint(k_path, (), 0, _table(params.cell_count).shape[0])
+        slot = jax.random.randint(k_slot, (), 0, _table(params.cell_count)[cell])
+        path, tau = _table(params.cell_path)[cell, slot], _table(params.cell_tau)[cell, slot]
+        return path, tau, _table(params.path_jitter)[path]
 
     def by_action():
-        path = jax.random.categorical(k_path, params.path_log_weight)
-        slot = jax.random.randint(k_slot, (), 0, params.path_flight_tau.shape[1])
-        return path, params.path_flight_tau[path, slot], params.path_flight_jitter[path]
+        path = jax.random.categorical(k_path, _table(params.path_log_weight))
+        slot = jax.random.randint(k_slot, (), 0, _table(params.path_flight_tau).shape[1])
+        return path, _table(params.path_flight_tau)[path, slot], _table(params.path_flight_jitter)[path]
 
     if params.target_sampling == "area":
         path, tau, width = by_area()
@@ -244,20 +253,20 @@ def sample_target(key, params: BasketballParams):
     else:  # "mixed": half of each
         area = jax.random.bernoulli(jax.random.fold_in(key, 1))
         path, tau, width = jax.tree.map(lambda a, b: jnp.where(area, a, b), by_area(), by_action())
-    p0, v0 = params.path_p0[path], params.path_v0[path]
+    p0, v0 = _table(params.path_p0)[path], _table(params.path_v0)[path]
     jittered = jnp.clip(tau + (jax.random.uniform(k_jit) - 0.5) * width,
-                        0.0, params.path_tau_end[path])
+                        0.0, _table(params.path_tau_end)[path])
     point = flight_point(p0, v0, jittered, params.g)
     inside = _in_window(point, params.window)
     target = jnp.where(inside, point, flight_point(p0, v0, tau, params.g))
-    return target, params.path_action[path]
+    return target, _table(params.path_action)[path]
 
 
 def _grid_actions(n_T: int, n_delta: int, T_range, delta_range) -> np.ndarray:
     """(n_T * n_delta, 2) physical (T, delta): T uniform in 1/T, delta uniform."""
     inv = np.linspace(1.0 / T_range[0], 1.0 / T_range[1], n_T)
     T = np.clip(1.0 / inv, *T_range)
-    delta = np.linspace(*delta_range, n_delta)
+    delta = np.linspace(delta_range[0], delta_range[1], n_delta)
     TT, DD = np.meshgrid(T, delta, indexing="ij")
     return np.stack([TT.ravel(), DD.ravel()], -1)
 
@@ -353,7 +362,8 @@ def make_params(n_grid_T: int = 128, n_grid_delta: int = 32, cell: float = 0.05,
         if key not in _CACHE:
             _CACHE[key] = _tables(n_grid_T, n_grid_delta, cell, per_cell, sample_ds, per_path, base)
         tables = _CACHE[key]
-    return base.replace(**{k: jnp.asarray(v) for k, v in tables.items()})
+    arrays: dict[str, Any] = {k: jnp.asarray(v) for k, v in tables.items()}  # the table fields
+    return dataclasses.replace(base, **arrays)
 
 
 # ----------------------------------------------------------------------------- env
@@ -388,7 +398,7 @@ class Basketball:
         valid = (finite & jnp.isfinite(cost) & jnp.all(jnp.isfinite(p0))
                  & bounded(v0, RELEASE_SPEED_BOUND))
         reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, cost, 0.0)), 0.0)
-        state = state.replace(step=state.step + 1)
+        state = dataclasses.replace(state, step=state.step + 1)
         info = {"cost": cost, "T": T, "delta": delta, "valid": valid,
                 "truncated": jnp.zeros((), bool)}
         return normalise(state.target, params), state, reward, jnp.ones((), bool), info
