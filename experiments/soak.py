@@ -28,6 +28,7 @@ Writes a JSON summary (``--out``, default ``soak.json`` in the working folder).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import tempfile
@@ -54,7 +55,15 @@ jax.monitoring.register_event_duration_secs_listener(_count)
 
 
 def rss_mb() -> float:
-    """Resident set size of this process (MB), from /proc (Linux); ru_maxrss elsewhere."""
+    """Resident set size of this process (MB), from /proc (Linux); ru_maxrss elsewhere.
+
+    Collects cyclic garbage first: matplotlib figures are reference cycles that Python
+    frees only at its next cyclic collection, so without it each training's plots
+    show as ~4 MB of "growth" that plateaus (measured: 215 -> 233 MB after 30
+    histograms, then flat; with a collection per plot, flat at 204 MB). A real leak
+    survives the collection.
+    """
+    gc.collect()
     try:
         for line in Path("/proc/self/status").read_text().splitlines():
             if line.startswith("VmRSS:"):
