@@ -41,10 +41,11 @@ import subprocess
 import time
 from pathlib import Path
 
-import gvsjax as gv  # first: configures JAX
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 THETA_F = math.radians(210.0)
 BALL = 5.886

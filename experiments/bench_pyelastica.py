@@ -48,10 +48,11 @@ import os
 import subprocess
 import time
 
-import gvsjax as gv  # first: configures JAX
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 THETA_F = math.radians(210.0)
 BALL = 5.886  # N
@@ -396,7 +397,8 @@ def main() -> None:
         "gvsjax, 2 modes (300 RK4 steps)": (np.asarray(swing2)[:, :2], flight(p_gv, v_gv)[0]),
         f"gvsjax, {best['n_modes']} Legendre modes (converged)":
             (None, flight(np.array(best["tip"]), np.array(best["tip_velocity"]))[0]),
-        f"PyElastica, {args.n_elements} elements, KV damping": (pe["path"][:, :2], flight(pe["tip"], pe["tip_velocity"])[0]),
+        f"PyElastica, {args.n_elements} elements, KV damping": (pe["path"][:, :2],
+                                                                 flight(pe["tip"], pe["tip_velocity"])[0]),
         "PyElastica, AnalyticalLinearDamper": (None, flight(pe_lin["tip"], pe_lin["tip_velocity"])[0]),
     }
     os.makedirs(os.path.dirname(args.figure), exist_ok=True)
@@ -436,10 +438,12 @@ def main() -> None:
 def print_tables(r: dict) -> None:
     b1, bb, rel = r["batch1"], r["batch1024"], r["release"]
     print(f"\nT = {r['T']} s, delta = {r['delta']}; PyElastica {r['n_elements']} elements, "
-          f"dt = {r['pyelastica_dt']:.3g} s ({r['pyelastica_steps']} steps); gvsjax 2 modes, {r['gvsjax_steps']} RK4 steps\n")
+          f"dt = {r['pyelastica_dt']:.3g} s ({r['pyelastica_steps']} steps); "
+          f"gvsjax 2 modes, {r['gvsjax_steps']} RK4 steps\n")
     print("| batch | gvsjax wall s | PyElastica wall s | ratio | gvsjax compile s |")
     print("|---|---|---|---|---|")
-    print(f"| 1 | {b1['gvsjax_s']:.2e} | {b1['pyelastica_s']:.2f} | {b1['ratio']:,.0f}x | {b1['gvsjax_compile_s']:.1f} |")
+    print(f"| 1 | {b1['gvsjax_s']:.2e} | {b1['pyelastica_s']:.2f} | {b1['ratio']:,.0f}x | "
+          f"{b1['gvsjax_compile_s']:.1f} |")
     print(f"| 1024 | {bb['gvsjax_s']:.3f} | {bb['pyelastica_s_extrapolated']:.0f} (extrapolated from "
           f"{bb['pyelastica_throws_timed']} throws) | {bb['ratio']:,.0f}x | {bb['gvsjax_compile_s']:.1f} |")
     print("\n| release tip position difference | cm |")
@@ -452,11 +456,13 @@ def print_tables(r: dict) -> None:
     for k, v in r["landing_x"].items():
         print(f"| {k} | {v:.3f} |")
     print("\nRelease state vs n_modes / n_gauss (RK4 at half its stability limit; differences vs the last row)\n")
-    print("| n_modes | n_gauss | basis | RK4 steps | tip x, y (m) | d tip (mm) | d tip velocity (mm/s) | d landing (cm) |")
+    print("| n_modes | n_gauss | basis | RK4 steps | tip x, y (m) | d tip (mm) | d tip velocity (mm/s) "
+          "| d landing (cm) |")
     print("|---|---|---|---|---|---|---|---|")
     for c in r["convergence"]:
-        print(f"| {c['n_modes']} | {c['n_gauss']} | {c['basis']} | {c['n_steps']} | {c['tip'][0]:.4f}, {c['tip'][1]:.4f} | "
-              f"{c['d_tip_mm']:.2f} | {c['d_vel_mm_s']:.1f} | {c['d_landing_cm']:.1f} |")
+        print(f"| {c['n_modes']} | {c['n_gauss']} | {c['basis']} | {c['n_steps']} | "
+              f"{c['tip'][0]:.4f}, {c['tip'][1]:.4f} | {c['d_tip_mm']:.2f} | {c['d_vel_mm_s']:.1f} | "
+              f"{c['d_landing_cm']:.1f} |")
     print(f"\nload: {r['load_start']} -> {r['load_end']}")
 
 

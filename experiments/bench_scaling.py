@@ -19,7 +19,8 @@
     python experiments/bench_scaling.py [--quick]
 
 Writes benchmarks/scaling_<section>.json (``--sections batch,model,dt,compile,ppo``; run
-sections in separate processes if you like, ``--replot`` gathers them), figures/bench_scaling_{batch,model,dt,ppo}.png and prints
+sections in separate processes if you like, ``--replot`` gathers them),
+figures/bench_scaling_{batch,model,dt,ppo}.png and prints
 Markdown tables.
 """
 
@@ -34,10 +35,11 @@ import subprocess
 import sys
 import time
 
-import gvsjax as gv  # first: configures JAX
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_sim import actions, make_throws  # noqa: E402
@@ -100,7 +102,7 @@ def vs_model(configs, batch=1024, n_steps=100):
         # the swing scaled so that n_steps steps of dt stay stable (speed only: cost per step
         # does not depend on the values)
 
-        def rel(T):
+        def rel(T, arm=arm, dt=dt):  # bound now (B023); traced within this iteration anyway
             tr = gv.simulate(arm, n_steps * dt, n_steps=n_steps, save_every=n_steps, check_stability=False,
                              base_angle=lambda t: THETA_F * (t / T) ** 2)
             return tr.tip[-1]
@@ -301,12 +303,14 @@ def print_tables(res):
     print("\n| RK4 steps per throw | largest dt (ms) | throws/s (batch 1024) | release error (mm) |")
     print("|---|---|---|---|")
     for r in res["dt"]:
-        print(f"| {r['n_steps']} | {r['dt_max_ms']:.1f} | {r['throws_per_s']:,.0f} | {r['release_error_m'] * 1e3:.2e} |")
+        print(f"| {r['n_steps']} | {r['dt_max_ms']:.1f} | {r['throws_per_s']:,.0f} | "
+              f"{r['release_error_m'] * 1e3:.2e} |")
     print("\n| num_envs | one update (s) | episodes/s | XLA planned MiB | peak RSS so far MiB | compile s |")
     print("|---|---|---|---|---|---|")
     for r in res["ppo"]:
         print(f"| {r['num_envs']} | {r['update_s']:.3f} | {r['episodes_per_s']:,.0f} | "
-              f"{r['xla_planned_bytes'] / 2**20:.1f} | {r['peak_rss_bytes_so_far'] / 2**20:.0f} | {r['compile_s']:.1f} |")
+              f"{r['xla_planned_bytes'] / 2**20:.1f} | {r['peak_rss_bytes_so_far'] / 2**20:.0f} | "
+              f"{r['compile_s']:.1f} |")
     print("\n| task | env tables s | training-program compile s | updates per call |")
     print("|---|---|---|---|")
     for r in res["compile"]:

@@ -15,10 +15,11 @@ import argparse
 import json
 import time
 
-import gvsjax as gv  # first: configures JAX
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 THETA_F = np.deg2rad(210.0)
 

@@ -35,11 +35,11 @@ import tempfile
 import time
 from pathlib import Path
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import train
 from gvsjax.tasks import make
 
@@ -147,7 +147,8 @@ def verdict(phase: dict, tolerance_mb: float) -> dict:
     return {"warmup_iterations": w, "rss_after_warmup_mb": float(rss[w - 1]), "rss_end_mb": float(rss[-1]),
             "rss_max_growth_mb": float(later.max() - later[0]), "rss_slope_mb_per_iter": slope,
             "rss_trend_mb": trend, "live_arrays_mb_after_warmup": phase["live_arrays_mb"][w - 1],
-            "live_arrays_mb_end": phase["live_arrays_mb"][-1], "compiles_warmup": comp[w - 1], "compiles_after_warmup": comp[-1] - comp[w - 1],
+            "live_arrays_mb_end": phase["live_arrays_mb"][-1], "compiles_warmup": comp[w - 1],
+            "compiles_after_warmup": comp[-1] - comp[w - 1],
             "flat": trend <= tolerance_mb, "no_recompile": comp[-1] == comp[w - 1]}
 
 

@@ -17,19 +17,21 @@ from __future__ import annotations
 import csv
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import checkpoint, plots
 from gvsjax.ppo import init, make_network, policy_action
 from gvsjax.tasks import make, registered
 
 USAGE = __doc__.strip()
-KEYS = {"task": "basketball", "checkpoint": "", "n_targets": 1000, "seed": -1, "out": ""}
+KEYS: dict[str, Any] = {"task": "basketball", "checkpoint": "", "n_targets": 1000, "seed": -1, "out": ""}
 
 
 def load_policy(ckpt_path):
@@ -46,7 +48,7 @@ def load_policy(ckpt_path):
     return config, env, env_params, state.params
 
 
-_ROLLOUTS: dict[tuple, object] = {}  # jitted rollouts per (task, network), reused in-process
+_ROLLOUTS: dict[tuple, Callable] = {}  # jitted rollouts per (task, network), reused in-process
 _NETWORK_FIELDS = ("network", "shared_hidden", "actor_hidden", "critic_hidden", "activation",
                    "std_mode", "init_log_std", "min_log_std")
 
@@ -121,7 +123,7 @@ def evaluate_run(ckpt_path, out, n_targets: int = 1000, seed: int = 1_000_003) -
 def summary(result: dict) -> str:
     if "success_rate_10cm" not in result:  # a task's own result: its module formats it
         mod = sys.modules.get(f"gvsjax.tasks.{result.get('task')}")
-        return mod.summary(result) if hasattr(mod, "summary") else json.dumps(result)
+        return mod.summary(result) if mod is not None and hasattr(mod, "summary") else json.dumps(result)
     return (f"eval on {result['n_targets']} targets (seed {result['seed']}): "
             f"success<10cm {100 * result['success_rate_10cm']:.1f}%, "
             f"<1cm {100 * result['within_1cm']:.1f}%, median {100 * result['median_m']:.2f} cm, "

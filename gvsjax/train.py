@@ -36,10 +36,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import jax
 import numpy as np
 
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import checkpoint
 from gvsjax.ppo import FIELD_DOCS, MATLAB_LIKE, PPOConfig, describe, init, make_update, num_updates
 from gvsjax.ppo.config import parse_value
@@ -284,8 +284,7 @@ def non_finite(rows: list[dict[str, float]], state) -> str | None:
         for where, x in leaves:
             x = np.asarray(x)
             if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
-                where = jax.tree_util.keystr(where)
-                return f"{name}{where} became non-finite by update {int(state.update) - 1}"
+                return f"{name}{jax.tree_util.keystr(where)} became non-finite by update {int(state.update) - 1}"
     return None
 
 

@@ -14,7 +14,7 @@ def concrete(x: Any) -> bool:
     return not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(x))
 
 
-def require(ok: bool, name: str, value: Any, allowed: str) -> None:
+def require(ok: bool | np.bool_, name: str, value: Any, allowed: str) -> None:
     """Raise ``ValueError('<name>=<value> is invalid: expected <allowed>')`` unless ok."""
     if not ok:
         shown = value if not isinstance(value, np.ndarray) else np.array2string(value, threshold=8)

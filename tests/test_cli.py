@@ -3,9 +3,9 @@
 import csv
 import json
 
-import gvsjax  # noqa: F401
 import pytest
 
+import gvsjax  # noqa: F401
 from gvsjax import checkpoint, evaluate, train
 
 TINY = ["task=basketball", "num_envs=16", "num_minibatches=2", "update_epochs=1",

@@ -493,6 +493,7 @@ def test_nan_loss_stops_training_and_keeps_the_last_good_checkpoint(bandit_tasks
     assert not (out / "timing.json").exists()
     config = train.config_from_json(meta["config"])
     from bandit_env import BanditEnv
+
     from gvsjax.ppo import init
 
     template = init(config, BanditEnv(), BanditEnv().default_params(), jax.random.PRNGKey(0))

@@ -30,7 +30,8 @@ Conventions (fixed for all gvsjax tasks):
 
 from __future__ import annotations
 
-from typing import Any, Callable, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
