@@ -44,6 +44,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from bench_sim import timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
@@ -150,18 +151,6 @@ def steps_for_1mm(batched, T, d, candidates):
         if np.isfinite(coarse).all() and err <= 1e-3:
             return n, err, fine
     raise RuntimeError(f"no step count in {candidates} reaches 1 mm")
-
-
-def timed(fn, *args, repeats=3):
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn(*args))
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        runs.append(time.perf_counter() - t0)
-    return first - float(np.median(runs)), float(np.median(runs))
 
 
 def main() -> None:

@@ -51,6 +51,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+from bench_sim import timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
@@ -251,18 +252,6 @@ def flight(p0, v0, n=200):
     tau = np.linspace(0.0, tau_end, n)[:, None]
     path = p0[None, :2] + v0[None, :2] * tau + 0.5 * np.array([0.0, -g]) * tau**2
     return path, float(path[-1, 0])
-
-
-def timed(fn, *args, repeats=5):
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn(*args))
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        runs.append(time.perf_counter() - t0)
-    return first - float(np.median(runs)), float(np.median(runs))
 
 
 def convergence_table(T, delta):

@@ -42,7 +42,7 @@ import numpy as np
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_sim import actions, make_throws  # noqa: E402
+from bench_sim import actions, make_throws, timed  # noqa: E402
 
 THETA_F = math.radians(210.0)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -51,19 +51,6 @@ FIG = os.path.join(ROOT, "figures")
 
 def load_average() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-
-
-def timed(fn, *args, repeats=3):
-    """(compile + first run - median run, median run) in s."""
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn(*args))
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        runs.append(time.perf_counter() - t0)
-    return first - float(np.median(runs)), float(np.median(runs))
 
 
 def vs_batch(batches, n_steps=300):

@@ -41,7 +41,8 @@ def actions(batch: int, seed: int = 0):
             jax.random.uniform(k2, (batch,), minval=0.85, maxval=1.0))
 
 
-def timed(fn, *args, repeats: int) -> tuple[float, float]:
+def timed(fn, *args, repeats: int = 3) -> tuple[float, float]:
+    """(compile + first run - median run, median of ``repeats`` runs) in s; shared by the bench scripts."""
     t0 = time.perf_counter()
     jax.block_until_ready(fn(*args))
     first = time.perf_counter() - t0
