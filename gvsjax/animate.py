@@ -26,6 +26,7 @@ import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
 
 import gvsjax as gv
+from gvsjax.evaluate import parse_key_values
 from gvsjax.tasks import basketball as bb
 from gvsjax.tasks import pickplace as pp
 
@@ -188,15 +189,7 @@ def _floats(key: str, text: str, n: int) -> list[float]:
 
 
 def parse_args(argv: list[str]) -> dict:
-    args = dict(KEYS)
-    for item in argv:
-        key, sep, text = item.partition("=")
-        if not sep or key not in KEYS:
-            raise ValueError(f"bad argument {item!r}; valid keys: {sorted(KEYS)} (key=value)")
-        try:
-            args[key] = type(KEYS[key])(text)
-        except ValueError:
-            raise ValueError(f"{key}={text!r} is invalid; expected {type(KEYS[key]).__name__}") from None
+    args = parse_key_values(argv, KEYS)
     if args["task"] not in ("basketball", "pickplace"):
         raise ValueError(f"task={args['task']!r} is unknown; choose basketball or pickplace")
     return args

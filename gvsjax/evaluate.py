@@ -130,16 +130,22 @@ def summary(result: dict) -> str:
             f"p95 {100 * result['p95_m']:.2f} cm, max {100 * result['max_m']:.2f} cm")
 
 
-def parse_args(argv: list[str]) -> dict:
-    args = dict(KEYS)
+def parse_key_values(argv: list[str], defaults: dict[str, Any]) -> dict[str, Any]:
+    """``["key=value", ...]`` over ``defaults``, each value parsed by its default's type."""
+    args = dict(defaults)
     for item in argv:
         key, sep, text = item.partition("=")
-        if not sep or key not in KEYS:
-            raise ValueError(f"bad argument {item!r}; valid keys: {sorted(KEYS)} (key=value)")
+        if not sep or key not in defaults:
+            raise ValueError(f"bad argument {item!r}; valid keys: {sorted(defaults)} (key=value)")
         try:
-            args[key] = type(KEYS[key])(text)
+            args[key] = type(defaults[key])(text)
         except ValueError:
-            raise ValueError(f"{key}={text!r} is invalid; expected {type(KEYS[key]).__name__}") from None
+            raise ValueError(f"{key}={text!r} is invalid; expected {type(defaults[key]).__name__}") from None
+    return args
+
+
+def parse_args(argv: list[str]) -> dict:
+    args = parse_key_values(argv, KEYS)
     if not args["checkpoint"]:
         raise ValueError("checkpoint=PATH is required")
     if args["task"] not in registered():
