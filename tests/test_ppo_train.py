@@ -219,3 +219,93 @@ def test_policy_action_names_a_wrong_obs_width_and_a_missing_key():
         policy_action(params, net.apply, jnp.zeros((3, 4)))
     with pytest.raises(ValueError, match="key=None is invalid"):
         policy_action(params, net.apply, jnp.zeros(5), deterministic=False)
+
+
+def _antithetic_batch(config, value_error):
+    """A single-step bandit rollout as a Batch with advantage r - (V + value_error(obs))."""
+    from gvsjax.ppo import Batch
+
+    env = BanditEnv()
+    state = init(config, env, env.default_params(), jax.random.PRNGKey(3))
+    _, traj = jax.jit(lambda s: collect(config, env, env.default_params(), s))(state)
+    flat = lambda x: x.reshape((-1,) + x.shape[2:])
+    obs = flat(traj.obs)
+    value = flat(traj.value) + value_error(obs)
+    return state.params, Batch(obs=obs, action=flat(traj.action), log_prob=flat(traj.log_prob),
+                               value=value, advantage=flat(traj.reward) - value,
+                               target=flat(traj.reward), weight=jnp.ones(obs.shape[0]))
+
+
+def test_antithetic_pairs_share_targets_mirror_noise_and_stay_in_one_minibatch():
+    from gvsjax.ppo.train import _shuffle
+
+    config = FAST.replace(antithetic=True, num_envs=16, num_steps=3, num_minibatches=4)
+    env = BanditEnv()
+    state = init(config, env, env.default_params(), jax.random.PRNGKey(0))
+    _, traj = jax.jit(lambda s: collect(config, env, env.default_params(), s))(state)
+    obs, action = np.asarray(traj.obs), np.asarray(traj.action)
+    mean = np.asarray(make_network(config, 2).apply(state.params, traj.obs)[0])
+    np.testing.assert_array_equal(obs[:, :8], obs[:, 8:])  # same targets, every step (auto-reset)
+    assert len(np.unique(obs[:, :8].reshape(-1, 2), axis=0)) == 24  # but distinct pairs
+    np.testing.assert_allclose(action[:, :8] - mean[:, :8], -(action[:, 8:] - mean[:, 8:]), atol=1e-6)
+    # the shuffle moves pairs as units: flat index t*16 + i pairs with t*16 + i + 8
+    index = jnp.arange(3 * 16)
+    minibatches = np.asarray(_shuffle(config, jax.random.PRNGKey(1), index))
+    assert minibatches.shape == (4, 12) and sorted(minibatches.ravel()) == list(range(48))
+    for mb in minibatches:
+        partner = np.where(mb % 16 < 8, mb + 8, mb - 8)
+        assert set(partner) == set(mb)
+    with pytest.raises(ValueError, match="num_envs=15"):
+        FAST.replace(antithetic=True, num_envs=15, num_minibatches=1)
+    with pytest.raises(ValueError, match="num_minibatches=4"):  # 4 divides 12 envs, not 6 pairs
+        FAST.replace(antithetic=True, num_envs=12, num_steps=1, num_minibatches=4)
+
+
+@pytest.mark.parametrize("antithetic", [True, False])
+def test_antithetic_policy_gradient_ignores_the_critics_error(antithetic):
+    # a state-dependent critic error e(s) shifts both advantages of a pair equally; with
+    # mirrored noise its contribution to the mean's gradient cancels exactly (first epoch,
+    # ratio 1, no normalisation), so only the log-std gradient may change
+    from gvsjax.ppo import ppo_loss
+
+    config = FAST.replace(antithetic=antithetic, num_envs=64, num_steps=1, num_minibatches=1)
+    apply_fn = make_network(config, 2).apply
+
+    def grads(value_error):
+        params, batch = _antithetic_batch(config, value_error)
+        return params, jax.grad(lambda p: ppo_loss(p, apply_fn, batch, 0.2, 0.0, 0.0, False)[0])(params)
+
+    params, clean = grads(lambda o: 0.0)
+    _, noisy = grads(lambda o: 0.3 * jnp.sin(3.0 * o[:, 0]) + 0.2 * o[:, 1])
+    changed = jax.tree.map(lambda a, b: float(jnp.max(jnp.abs(a - b)) / (jnp.max(jnp.abs(a)) + 1e-12)),
+                           clean, noisy)
+    flat = {"/".join(str(k.key) for k in path): v
+            for path, v in jax.tree_util.tree_flatten_with_path(changed)[0]}
+    mean_and_trunk = {k: v for k, v in flat.items() if "log_std" not in k}
+    assert mean_and_trunk and flat.keys() - mean_and_trunk.keys()  # both kinds present
+    if antithetic:
+        assert max(mean_and_trunk.values()) < 1e-4, mean_and_trunk
+    else:
+        assert max(mean_and_trunk.values()) > 0.05, mean_and_trunk
+
+
+def test_adaptive_kl_lowers_the_rate_after_a_large_step_and_raises_it_after_a_small_one():
+    from gvsjax.ppo.train import adapt_learning_rate
+
+    np.testing.assert_allclose(adapt_learning_rate(jnp.float32(1e-3), 0.1, 0.01), 1e-3 / 1.5, rtol=1e-6)
+    np.testing.assert_allclose(adapt_learning_rate(jnp.float32(1e-3), 0.001, 0.01), 1.5e-3, rtol=1e-6)
+    np.testing.assert_allclose(adapt_learning_rate(jnp.float32(1e-3), 0.015, 0.01), 1e-3, rtol=1e-6)
+    env = BanditEnv()
+    env_params = env.default_params()
+    config = FAST.replace(adaptive_kl=1e-9, total_episodes=32 * 4 * 3)  # every update's KL is above
+    state = init(config, env, env_params, jax.random.PRNGKey(0))
+    state, metrics = make_update(config, env, env_params, updates_per_call=3)(state)
+    used = np.asarray(metrics["learning_rate"])
+    np.testing.assert_allclose(used, FAST.learning_rate / 1.5 ** np.arange(3), rtol=1e-6)
+    assert np.all(np.asarray(metrics["approx_kl"]) > 2e-9)
+    # the rate never exceeds the phase's (annealed) rate, however small the KL
+    config = FAST.replace(adaptive_kl=1e3, anneal_lr=True, total_episodes=32 * 4 * 3)
+    state = init(config, env, env_params, jax.random.PRNGKey(0))
+    _, metrics = make_update(config, env, env_params, updates_per_call=3)(state)
+    np.testing.assert_allclose(np.asarray(metrics["learning_rate"]), FAST.learning_rate * (1 - np.arange(3) / 3),
+                               rtol=1e-6)

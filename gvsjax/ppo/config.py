@@ -46,6 +46,10 @@ class PPOConfig:
     target_kl: float = _f(
         math.inf, "skip an update's remaining epochs once an epoch's mean approx KL exceeds "
         "1.5 x target_kl (inf: never)")
+    adaptive_kl: float = _f(
+        math.inf, "KL-adaptive learning rate (rsl_rl style): after an update whose mean approx KL "
+        "exceeds 2 x adaptive_kl the rate is divided by 1.5, below adaptive_kl/2 multiplied by 1.5, "
+        "never above the phase's (annealed) rate (inf: off)")
     l2_coef: float = _f(0.0, "L2 regularisation added to gradients (MATLAB default 1e-4)")
     learning_rate: float = _f(1e-4, "Adam learning rate in phase 1 (paper: 1e-4)")
     anneal_lr: bool = _f(False, "scale the phase's lr by 1 - update/num_updates")
@@ -61,6 +65,10 @@ class PPOConfig:
     finetune_fraction: float = _f(0.2, "fraction of total_episodes spent in phase 2 (fine-tuning)")
     finetune_learning_rate: float = _f(1e-5, "Adam learning rate in phase 2 (paper: 1e-5)")
     finetune_clip_eps: float = _f(0.02, "PPO ratio clip in phase 2 (paper: 0.02)")
+    antithetic: bool = _f(
+        False, "pair env i with env i + num_envs/2: same reset keys (targets) and mirrored "
+        "action noise +-eps, kept in one minibatch; a pair's policy gradient then does not "
+        "depend on the critic's error (exact for single-step tasks)")
 
     def __post_init__(self) -> None:
         hints = typing.get_type_hints(type(self))
@@ -72,6 +80,14 @@ class PPOConfig:
             if not ok(value):
                 raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
         batch = self.num_envs * self.num_steps
+        if self.antithetic:
+            if self.num_envs % 2:
+                raise ValueError(f"num_envs={self.num_envs} is invalid with antithetic=True; "
+                                 "it must be even (envs come in mirrored pairs)")
+            if (batch // 2) % self.num_minibatches:
+                raise ValueError(
+                    f"num_minibatches={self.num_minibatches} is invalid with antithetic=True; "
+                    f"it must divide the number of pairs num_envs*num_steps/2={batch // 2}")
         if batch % self.num_minibatches:
             raise ValueError(
                 f"num_minibatches={self.num_minibatches} is invalid; it must divide "
@@ -133,6 +149,7 @@ _CHECKS: dict[str, tuple[Any, str]] = {
     "ent_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
     "max_grad_norm": (lambda v: v > 0, "float > 0 (inf disables clipping)"),
     "target_kl": (lambda v: v > 0, "float > 0 (inf disables the early stop)"),
+    "adaptive_kl": (lambda v: v > 0, "float > 0 (inf disables the adaptation)"),
     "l2_coef": (lambda v: _finite(v) and v >= 0, "finite float >= 0"),
     "learning_rate": (lambda v: _finite(v) and v > 0, "finite float > 0"),
     "network": (lambda v: v in ("shared", "separate"), "'shared' or 'separate'"),

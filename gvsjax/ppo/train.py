@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import chex
@@ -107,6 +108,12 @@ def phase_hyperparams(
     return lr.astype(jnp.float32), clip_eps.astype(jnp.float32)
 
 
+def adapt_learning_rate(lr: jax.Array, kl: jax.Array, target: float) -> jax.Array:
+    """The next update's rate: / 1.5 after KL > 2 target, x 1.5 after KL < target / 2 (>= 1e-7)."""
+    factor = jnp.where(kl > 2.0 * target, 1.0 / 1.5, jnp.where(kl < 0.5 * target, 1.5, 1.0))
+    return jnp.maximum(lr * factor, 1e-7).astype(jnp.float32)
+
+
 def make_optimizer(config: PPOConfig) -> optax.GradientTransformation:
     """Global-norm clip, optional L2, Adam; the learning rate is an injected hyperparameter."""
 
@@ -120,6 +127,25 @@ def make_optimizer(config: PPOConfig) -> optax.GradientTransformation:
     return optax.inject_hyperparams(chain, hyperparam_dtype=jnp.float32)(
         learning_rate=config.learning_rate
     )
+
+
+def _env_keys(config: PPOConfig, key: jax.Array) -> jax.Array:
+    """One key per env; with ``antithetic`` env i and i + num_envs/2 get the same key."""
+    if not config.antithetic:
+        return jax.random.split(key, config.num_envs)
+    return _pair_up(jax.random.split(key, config.num_envs // 2))
+
+
+def _pair_up(half: jax.Array) -> jax.Array:
+    return jnp.concatenate([half, half])
+
+
+def _noise(config: PPOConfig, key: jax.Array, shape: tuple, dtype) -> jax.Array:
+    """Standard normal action noise (N, A); with ``antithetic`` the second half is -(first half)."""
+    if not config.antithetic:
+        return jax.random.normal(key, shape, dtype)
+    eps = jax.random.normal(key, (shape[0] // 2,) + shape[1:], dtype)
+    return jnp.concatenate([eps, -eps])
 
 
 def _shardings(config: PPOConfig):
@@ -136,7 +162,7 @@ def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainSta
     params = network.init(key_net, jnp.zeros((env.obs_size,), jnp.float32))
     params = sharding.constrain(params, everywhere)
     obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(
-        jax.random.split(key_reset, config.num_envs), env_params
+        _env_keys(config, key_reset), env_params
     )
     return TrainState(
         params=params,
@@ -172,8 +198,9 @@ def collect(
     def one_step(carry, keys):  # keys: (n + 1,) = action key, one key per env
         env_state, obs, episode_return = sharding.constrain(carry, envs)  # env axis split
         mean, log_std, value = apply_fn(state.params, obs)
-        action = mean + jnp.exp(log_std) * jax.random.normal(keys[0], mean.shape, mean.dtype)
-        next_obs, env_state, reward, done, info = env_step(keys[1:], env_state, action, env_params)
+        action = mean + jnp.exp(log_std) * _noise(config, keys[0], mean.shape, mean.dtype)
+        env_keys = _pair_up(keys[1:n // 2 + 1]) if config.antithetic else keys[1:]
+        next_obs, env_state, reward, done, info = env_step(env_keys, env_state, action, env_params)
         valid = jnp.asarray(info.get("valid", jnp.ones((n,), bool)), bool)
         done = jnp.asarray(done, bool) | ~valid
         reward = jnp.where(valid, reward, 0.0).astype(jnp.float32)
@@ -274,7 +301,6 @@ def update(
     # every device gets the whole rollout: the shuffle and the Adam steps are then
     # the single-device computation (small next to the physics of the rollout)
     batch = sharding.constrain(batch, _shardings(config)[1])
-    size = batch.weight.shape[0]
 
     def minibatch_step(carry, minibatch):
         params, opt_state, stopped = carry
@@ -290,10 +316,7 @@ def update(
         return (params, keep(new_opt_state, opt_state), stopped), metrics
 
     def epoch(carry, key):
-        order = jax.random.permutation(key, size)
-        minibatches = jax.tree.map(
-            lambda x: x[order].reshape((config.num_minibatches, -1) + x.shape[1:]), batch
-        )
+        minibatches = jax.tree.map(partial(_shuffle, config, key), batch)
         ran = ~carry[2]
         (params, opt_state, stopped), metrics = jax.lax.scan(minibatch_step, carry, minibatches)
         # early stop (SB3/CleanRL's target_kl): no further epochs on this batch once the
@@ -302,22 +325,46 @@ def update(
         return (params, opt_state, stopped), (metrics, ran)
 
     opt_state = state.opt_state
+    if math.isfinite(config.adaptive_kl):  # the rate the last update chose, capped by the phase's
+        lr = jnp.minimum(opt_state.hyperparams["learning_rate"], lr)
     opt_state = opt_state._replace(hyperparams={**opt_state.hyperparams, "learning_rate": lr})
     key, key_epochs = jax.random.split(state.key)
     (params, opt_state, _), (loss_metrics, ran) = jax.lax.scan(
         epoch, (state.params, opt_state, jnp.zeros((), bool)),
         jax.random.split(key_epochs, config.update_epochs),
     )
-    state = dataclasses.replace(state, params=params, opt_state=opt_state, key=key, update=index + 1)
     # loss metrics: means over the epochs that updated the parameters
     w = ran.astype(jnp.float32)[:, None]
     metrics = {k: jnp.sum(v * w) / (jnp.sum(w) * v.shape[1]) for k, v in loss_metrics.items()}
+    if math.isfinite(config.adaptive_kl):
+        opt_state = opt_state._replace(hyperparams={
+            **opt_state.hyperparams,
+            "learning_rate": adapt_learning_rate(lr, metrics["approx_kl"], config.adaptive_kl)})
+    state = dataclasses.replace(state, params=params, opt_state=opt_state, key=key, update=index + 1)
     metrics["epochs_run"] = jnp.sum(ran, dtype=jnp.int32)
     metrics.update(episode_metrics(trajectory))
     metrics.update(
         learning_rate=lr, clip_eps=clip_eps, update=index, episodes=state.episodes
     )
     return state, metrics
+
+
+def _shuffle(config: PPOConfig, key: jax.Array, x: jax.Array) -> jax.Array:
+    """Shuffled ``(T*N, ...)`` -> ``(num_minibatches, T*N/num_minibatches, ...)``.
+
+    With ``antithetic`` the mirrored pairs (env i, env i + N/2 of one step) are
+    shuffled as units and land in the same minibatch, so the critic's error
+    cancels within each gradient step, not only over the epoch.
+    """
+    if not config.antithetic:
+        order = jax.random.permutation(key, x.shape[0])
+        return x[order].reshape((config.num_minibatches, -1) + x.shape[1:])
+    half = config.num_envs // 2
+    pairs = x.reshape((config.num_steps, 2, half) + x.shape[1:])
+    pairs = jnp.swapaxes(pairs, 0, 1).reshape((2, config.num_steps * half) + x.shape[1:])
+    pairs = pairs[:, jax.random.permutation(key, config.num_steps * half)]
+    pairs = pairs.reshape((2, config.num_minibatches, -1) + x.shape[1:])
+    return jnp.swapaxes(pairs, 0, 1).reshape((config.num_minibatches, -1) + x.shape[1:])
 
 
 def make_update(
