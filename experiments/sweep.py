@@ -27,7 +27,7 @@ import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.evaluate import metrics, rollout
 from gvsjax.ppo import PPOConfig, from_overrides, make_train
 from gvsjax.tasks import make
-from gvsjax.train import task_defaults
+from gvsjax.train import task_defaults, training_params
 
 
 def parse_args(argv=None):
@@ -57,7 +57,8 @@ def parse_args(argv=None):
 def main(argv=None) -> dict:
     args = parse_args(argv)
     env = make(args.task)
-    env_params = env.default_params()
+    env_params = env.default_params()  # evaluation's
+    train_params = training_params(env)  # the task's training distribution, as gvsjax.train
     defaults = dict(task_defaults(args.task))
     defaults.update(num_envs=args.num_envs, total_episodes=args.episodes)
     config = PPOConfig().replace(**defaults)
@@ -69,7 +70,7 @@ def main(argv=None) -> dict:
     rates = jnp.asarray([r for r, _ in grid])
 
     t0 = time.perf_counter()
-    states, curves = jax.jit(jax.vmap(make_train(config, env, env_params)))(keys, rates)
+    states, curves = jax.jit(jax.vmap(make_train(config, env, train_params)))(keys, rates)
     jax.block_until_ready(states)
     train_s = time.perf_counter() - t0
 

@@ -70,6 +70,9 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "out": ("", "run folder (default runs/<task>-<date>-<time>)"),
     "resume": (False, "continue the run in `out` from its last checkpoint"),
     "preset": ("none", f"override set applied before yours: {sorted(PRESETS)}"),
+    "train_targets": ("", "training target distribution of a task with several (basketball: action, area "
+                          "or mixed; empty: the task's own choice, basketball mixed); evaluation always "
+                          "uses the task's default params"),
     "checkpoint_every": (60.0, "seconds of training between checkpoints"),
     "eval_targets": (1000, "targets of the final evaluation (0 skips it)"),
     "eval_seed": (-1, "seed of the final evaluation's targets (-1: 1_000_003 + seed)"),
@@ -134,7 +137,22 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
         raise ValueError(f"seed={ppo['seed']!r} is invalid; expected an int in [0, 2**63)")
     if run["resume"] and not run["out"]:
         raise ValueError("resume=true needs out=<run folder> (the folder holding checkpoint.ckpt)")
+    choices = getattr(make(run["task"]), "train_target_choices", ())
+    if run["train_targets"] and run["train_targets"] not in choices:
+        allowed = f"choose one of {list(choices)} or leave it empty" if choices else \
+            "this task has a single target distribution: leave it empty"
+        raise ValueError(f"train_targets={run['train_targets']!r} is invalid for task={run['task']!r}; {allowed}")
     return run, ppo
+
+
+def training_params(env, targets: str = "") -> Any:
+    """The env params training uses: ``env.train_params(targets)`` if the task has it."""
+    if hasattr(env, "train_params"):
+        return env.train_params(targets)
+    if targets:
+        raise ValueError(f"train_targets={targets!r} is invalid for task={env.name!r}: it has a single "
+                         "target distribution (leave train_targets empty)")
+    return env.default_params()
 
 
 def task_defaults(task: str) -> dict[str, Any]:
@@ -155,7 +173,7 @@ def config_from_json(d: dict, source: str = "config") -> PPOConfig:
     if not isinstance(d, dict):
         raise ValueError(f"{source} is invalid: expected a JSON object of PPOConfig fields, "
                          f"got {type(d).__name__}")
-    unknown = sorted(set(d) - set(FIELD_DOCS) - {"task", "preset"})
+    unknown = sorted(set(d) - set(FIELD_DOCS) - {"task", "preset", "train_targets"})
     if unknown:
         raise ValueError(f"{source} has unknown key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
     d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in FIELD_DOCS}
@@ -168,12 +186,12 @@ def config_from_json(d: dict, source: str = "config") -> PPOConfig:
 _STEP_CACHE: dict[tuple, Any] = {}  # jitted update functions, reused within one process
 
 
-def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int):
+def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targets: str = ""):
     # The update never reads the seed (the PRNG key is in TrainState), so runs differing only
     # in seed share one program: a seed sweep in one process compiles once (soak: each new
     # program held ~100 MB of RSS).
     config = config.replace(seed=0)
-    key = (task, config, per_call)
+    key = (task, config, per_call, targets)
     if key not in _STEP_CACHE:
         _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
     return _STEP_CACHE[key]
@@ -308,14 +326,20 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
                                  f"{getattr(saved, key)!r}; it cannot change on resume "
                                  "(it fixes the saved state); start a new run instead")
         config = saved.replace(**overrides)
+        saved_targets = meta["config"].get("train_targets", "")
+        if run["train_targets"] and run["train_targets"] != saved_targets:
+            raise ValueError(f"resume: train_targets={run['train_targets']!r} differs from the checkpoint's "
+                             f"{saved_targets!r}; start a new run instead")
+        run = {**run, "train_targets": saved_targets}
     else:
         config = build_config(task, run["preset"], overrides)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(
-        {"task": task, "preset": run["preset"], **dataclasses.asdict(config)}, indent=2))
+        {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
+         **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
-    env_params = env.default_params()
+    env_params = training_params(env, run["train_targets"])
     state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
     if run["resume"]:
         state = checkpoint.restore_state(state, meta["train_state"])
@@ -323,7 +347,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     # ~8k episodes per jitted call: a responsive bar without Python overhead per update
     per_call = run.get("updates_per_call") or max(
         1, min(total, 8192 // (config.num_envs * config.num_steps)))
-    step_fn = _update_fn(task, config, env, env_params, per_call)
+    step_fn = _update_fn(task, config, env, env_params, per_call, run["train_targets"])
     log = MetricsLog(out, int(state.update) if run["resume"] else None)
     setup_s = time.perf_counter() - t0
 
@@ -332,7 +356,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         from tqdm import tqdm
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
-    config_dict = {"task": task, **dataclasses.asdict(config)}
+    config_dict = {"task": task, "train_targets": run["train_targets"], **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
     saved_update = int(state.update) if run["resume"] else None
     while int(state.update) < total:

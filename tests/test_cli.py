@@ -25,6 +25,7 @@ def test_help_lists_every_key(capsys):
     ("num_envs=0", ["num_envs=0 is invalid"]),
     ("task=chess", ["task='chess' is unknown", "basketball"]),
     ("noequals", ["key=value"]),
+    ("train_targets=corners", ["train_targets='corners' is invalid", "'action', 'area', 'mixed'"]),
 ])
 def test_bad_arguments_are_clear_errors(capsys, arg, words):
     assert train.main(["task=basketball", arg]) == 2
@@ -41,7 +42,8 @@ def test_tiny_run_resume_and_evaluate(tmp_path, capsys):
     for name in ["config.json", "metrics.csv", "checkpoint.ckpt", "timing.json", "eval.json",
                  "eval_throws.csv", "learning_curve.png", "error_histogram.png", "throw.png"]:
         assert (out / name).is_file(), name
-    assert json.loads((out / "config.json").read_text())["num_envs"] == 16
+    saved = json.loads((out / "config.json").read_text())
+    assert saved["num_envs"] == 16 and saved["train_targets"] == ""
     with open(out / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 4 and rows[-1]["episodes"] == "64"
@@ -58,6 +60,9 @@ def test_tiny_run_resume_and_evaluate(tmp_path, capsys):
                               "eval_targets=0"]) == 0
     after = checkpoint.load_raw(out / "checkpoint.ckpt")
     assert after["step"] == 6 and after["config"]["total_episodes"] == 96
+    with pytest.raises(ValueError, match="train_targets='area' differs"):  # it shaped the saved run
+        train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True,
+                     "train_targets": "area"}, {})
     with open(out / "metrics.csv") as f:
         updates = [int(r["update"]) for r in csv.DictReader(f)]
     assert updates == list(range(6))
@@ -84,3 +89,18 @@ def test_corrupted_checkpoint_is_a_clear_error(tmp_path):
     with pytest.raises(checkpoint.CheckpointError, match="corrupted"):
         checkpoint.load_raw(path)
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_training_targets_differ_from_evaluation_only_where_the_task_says_so():
+    from gvsjax.tasks import make
+
+    basketball = make("basketball")
+    assert train.training_params(basketball).target_sampling == "mixed"  # TRAIN_TARGETS
+    assert train.training_params(basketball, "area").target_sampling == "area"
+    assert basketball.default_params().target_sampling == "action"  # what evaluation draws
+    pickplace = make("pickplace")
+    assert not hasattr(pickplace, "train_params")
+    with pytest.raises(ValueError, match="train_targets='mixed' is invalid for task='pickplace'"):
+        train.training_params(pickplace, "mixed")
+    with pytest.raises(ValueError, match="single target distribution"):
+        train.parse_args(["task=pickplace", "train_targets=mixed"])

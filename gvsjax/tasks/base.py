@@ -51,6 +51,10 @@ class Environment(Protocol):
         """The task's parameters as the paper sets them (an immutable pytree)."""
         ...
 
+    # Optional: ``train_params(targets: str = "")``, the params training uses when they
+    # differ from ``default_params()`` (e.g. another target distribution); evaluation
+    # always uses ``default_params()``. ``gvsjax.train.training_params`` reads it.
+
     def reset(self, key: jax.Array, params: PyTree) -> tuple[jax.Array, PyTree]:
         """A new episode: ``(obs, state)``."""
         ...
