@@ -2,7 +2,14 @@
 ``losses`` (GAE and the clipped objective), ``train`` (pure, jittable training)."""
 
 from gvsjax.ppo.config import FIELD_DOCS, MATLAB_LIKE, PPOConfig, describe, from_overrides
-from gvsjax.ppo.losses import Batch, gae, gaussian_entropy, gaussian_log_prob, ppo_loss
+from gvsjax.ppo.losses import (
+    Batch,
+    clipped_gaussian_log_prob,
+    gae,
+    gaussian_entropy,
+    gaussian_log_prob,
+    ppo_loss,
+)
 from gvsjax.ppo.networks import SeparateActorCritic, SharedActorCritic, make_network
 from gvsjax.ppo.train import (
     TrainState,
@@ -20,7 +27,7 @@ from gvsjax.ppo.train import (
 
 __all__ = [
     "FIELD_DOCS", "MATLAB_LIKE", "PPOConfig", "describe", "from_overrides",
-    "Batch", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
+    "Batch", "clipped_gaussian_log_prob", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
     "SeparateActorCritic", "SharedActorCritic", "make_network",
     "TrainState", "Trajectory", "collect", "finetune_start", "init", "make_train",
     "make_update", "num_updates", "phase_hyperparams", "policy_action", "update",

@@ -65,6 +65,9 @@ class PPOConfig:
     finetune_fraction: float = _f(0.2, "fraction of total_episodes spent in phase 2 (fine-tuning)")
     finetune_learning_rate: float = _f(1e-5, "Adam learning rate in phase 2 (paper: 1e-5)")
     finetune_clip_eps: float = _f(0.02, "PPO ratio clip in phase 2 (paper: 0.02)")
+    clipped_log_prob: bool = _f(
+        False, "log-probabilities of the actions the env plays (clipped to [-1, 1]): a sample beyond "
+        "a bound counts with the mass beyond it (Fujita & Maeda 2018, clipped action policy gradient)")
     antithetic: bool = _f(
         False, "pair env i with env i + num_envs/2: same reset keys (targets) and mirrored "
         "action noise +-eps, kept in one minibatch; a pair's policy gradient then does not "

@@ -39,7 +39,7 @@ from flax import struct
 
 from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
-from gvsjax.ppo.losses import Batch, gae, gaussian_log_prob, ppo_loss
+from gvsjax.ppo.losses import Batch, action_log_prob, gae, ppo_loss
 from gvsjax.ppo.networks import make_network, obs_size
 from gvsjax.tasks.base import auto_reset_step
 
@@ -213,7 +213,7 @@ def collect(
         step = Trajectory(
             obs=obs,
             action=action,
-            log_prob=gaussian_log_prob(mean, log_std, action),
+            log_prob=action_log_prob(config.clipped_log_prob, mean, log_std, action),
             value=value,
             reward=reward,
             done=done,
@@ -306,7 +306,7 @@ def update(
         params, opt_state, stopped = carry
         grads, metrics = jax.grad(ppo_loss, has_aux=True)(
             params, apply_fn, minibatch, clip_eps, config.vf_coef, config.ent_coef,
-            config.normalize_advantages, config.clip_value_loss,
+            config.normalize_advantages, config.clip_value_loss, config.clipped_log_prob,
         )
         updates, new_opt_state = optimizer.update(grads, opt_state, params)
         metrics["grad_norm"] = optax.tree.norm(grads)
