@@ -46,6 +46,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--log-std-init", type=float, default=-0.5,
                    help="initial log std of the Gaussian policy (SB3's default 0 explores a lot "
                         "of the clipped [-1, 1] box; -0.5 is gvsjax.ppo's default)")
+    p.add_argument("--net", choices=("paper", "sb3"), default="paper",
+                   help="paper: the paper's layers 128-32-16 with ReLU (SB3 has no shared trunk, so "
+                        "actor and critic get one each); sb3: SB3's default MlpPolicy (64-64 tanh)")
     p.add_argument("--n-targets", type=int, default=1000, help="held-out evaluation targets")
     p.add_argument("--eval-seed", type=int, default=1_000_003, help="evaluation key seed")
     p.add_argument("--out", default="runs/sb3_basketball/result.json", help="results JSON path")
@@ -143,9 +146,13 @@ def main(argv=None) -> dict:
         venv.seed(args.seed)
     else:
         venv = make_vec_env("gvsjax/Basketball-v0", n_envs=args.n_envs, seed=args.seed)
+    policy_kwargs: dict = {"log_std_init": args.log_std_init}
+    if args.net == "paper":
+        import torch
+
+        policy_kwargs.update(net_arch=dict(pi=[128, 32, 16], vf=[128, 32, 16]), activation_fn=torch.nn.ReLU)
     model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
-                learning_rate=args.learning_rate, seed=args.seed, verbose=0,
-                policy_kwargs={"log_std_init": args.log_std_init})
+                learning_rate=args.learning_rate, seed=args.seed, verbose=0, policy_kwargs=policy_kwargs)
     t1 = time.perf_counter()
     model.learn(total_timesteps=args.timesteps)
     t2 = time.perf_counter()
@@ -162,7 +169,7 @@ def main(argv=None) -> dict:
               "seed": args.eval_seed, "train_seed": args.seed, "timesteps": int(model.num_timesteps),
               "episodes": int(episodes), "n_envs": args.n_envs, "n_steps": args.n_steps,
               "batch_size": args.batch_size, "learning_rate": args.learning_rate,
-              "log_std_init": args.log_std_init,
+              "log_std_init": args.log_std_init, "net": args.net,
               "setup_s": t1 - t0, "train_s": t2 - t1, "eval_s": t3 - t2, **metrics(r["miss"])}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
