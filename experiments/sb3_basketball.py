@@ -46,6 +46,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--log-std-init", type=float, default=-0.5,
                    help="initial log std of the Gaussian policy (SB3's default 0 explores a lot "
                         "of the clipped [-1, 1] box; -0.5 is gvsjax.ppo's default)")
+    p.add_argument("--max-seconds", type=float, default=float("inf"),
+                   help="stop training after this much wall time (e.g. 10x gvsjax's time to a quality level)")
     p.add_argument("--net", choices=("paper", "sb3"), default="paper",
                    help="paper: the paper's layers 128-32-16 with ReLU (SB3 has no shared trunk, so "
                         "actor and critic get one each); sb3: SB3's default MlpPolicy (64-64 tanh)")
@@ -58,6 +60,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     for name in ("timesteps", "n_envs", "n_steps", "batch_size", "n_targets"):
         if getattr(args, name) < 1:
             p.error(f"--{name.replace('_', '-')}={getattr(args, name)} must be >= 1")
+    if not args.max_seconds > 0:
+        p.error(f"--max-seconds={args.max_seconds} must be > 0")
     if args.seed < 0 or args.eval_seed < 0:
         p.error("--seed and --eval-seed must be >= 0")
     return args
@@ -135,6 +139,20 @@ def evaluate_policy(predict, env, env_params, n_targets: int, seed: int) -> dict
             "delta": np.asarray(info["delta"]), "miss": miss}
 
 
+def _wall_clock_limit(seconds: float):
+    """An SB3 callback that ends ``learn`` once ``seconds`` of wall time have passed."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class WallClockLimit(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.t0 = time.perf_counter()
+
+        def _on_step(self) -> bool:
+            return time.perf_counter() - self.t0 < seconds
+
+    return WallClockLimit()
+
+
 def main(argv=None) -> dict:
     args = parse_args(argv)
     from stable_baselines3 import PPO
@@ -154,7 +172,7 @@ def main(argv=None) -> dict:
     model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
                 learning_rate=args.learning_rate, seed=args.seed, verbose=0, policy_kwargs=policy_kwargs)
     t1 = time.perf_counter()
-    model.learn(total_timesteps=args.timesteps)
+    model.learn(total_timesteps=args.timesteps, callback=_wall_clock_limit(args.max_seconds))
     t2 = time.perf_counter()
     if args.vector:
         episodes, task = len(venv.episode_returns), venv.venv
@@ -169,7 +187,7 @@ def main(argv=None) -> dict:
               "seed": args.eval_seed, "train_seed": args.seed, "timesteps": int(model.num_timesteps),
               "episodes": int(episodes), "n_envs": args.n_envs, "n_steps": args.n_steps,
               "batch_size": args.batch_size, "learning_rate": args.learning_rate,
-              "log_std_init": args.log_std_init, "net": args.net,
+              "log_std_init": args.log_std_init, "net": args.net, "max_seconds": args.max_seconds,
               "setup_s": t1 - t0, "train_s": t2 - t1, "eval_s": t3 - t2, **metrics(r["miss"])}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
