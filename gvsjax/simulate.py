@@ -200,10 +200,13 @@ def simulate(
             require(size in sizes, name, fn, f"a callable t -> {allowed} value(s); "
                     f"it returns shape {getattr(out, 'shape', type(out).__name__)}")
     if tendon_force is not None and not callable(tendon_force) and concrete(tendon_force):
-        try:
+        try:  # numpy would read the string "0" as 0.0: text is not a tension
+            ok = (not isinstance(tendon_force, (str, bytes))
+                  and np.issubdtype(np.asarray(tendon_force).dtype, np.number))
             np.asarray(tendon_force, dtype=float)
         except (TypeError, ValueError):
-            require(False, "tendon_force", tendon_force, "a tension >= 0 N (one per tendon), or a callable")
+            ok = False
+        require(ok, "tendon_force", tendon_force, "a tension >= 0 N (one per tendon), or a callable")
     # --- end argument checks ---
     integrators.get(integrator)
     n_steps, dt = _steps(duration, dt, n_steps)
