@@ -393,9 +393,9 @@ class Basketball:
         "mixed" gives the sparse top of the court, which the fastest throws reach,
         ~2.6x its share of action-uniform draws (issue 7's note has the measurements).
         """
-        if targets not in ("", "action", "area", "mixed"):
-            raise ValueError(f"train_targets={targets!r} is invalid for basketball; choose 'action', "
-                             "'area' or 'mixed' (empty: TRAIN_TARGETS)")
+        if targets and targets not in self.train_target_choices:
+            raise ValueError(f"train_targets={targets!r} is invalid for basketball; choose one of "
+                             f"{list(self.train_target_choices)} (empty: TRAIN_TARGETS)")
         return make_params(target_sampling=targets or TRAIN_TARGETS)
 
     def reset(self, key, params: BasketballParams):
