@@ -26,12 +26,12 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from bench_sim import actions, load_average, make_throws  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 from gvsjax import integrators
@@ -39,10 +39,6 @@ from gvsjax.simulate import FreeDynamics, _Law
 
 THETA_F = math.radians(210.0)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def load_average() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
 def flops_of(fn, *args) -> float:
@@ -72,9 +68,6 @@ def step_flops(batch: int, n_modes=2, n_gauss=5):
 
 
 def measured_steps_per_s(batch: int, n_steps: int = 300, repeats: int = 5) -> float:
-    import sys
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from bench_sim import actions, make_throws
 
     fn = make_throws(n_steps)
     T, d = actions(batch)

@@ -37,14 +37,13 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from bench_sim import timed  # experiments/ is on sys.path when run as a script
+from bench_sim import load_average, timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
@@ -53,10 +52,6 @@ BALL = 5.886
 P = gv.PAPER_ARM
 L0 = 1e-3  # m, the prescribed "joint" segment
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def load_average() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
 def rk4(accel, q0, qd0, t_end, n_steps):

@@ -45,13 +45,12 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from bench_sim import timed  # experiments/ is on sys.path when run as a script
+from bench_sim import load_average, timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
@@ -61,10 +60,6 @@ Y_FLOOR = -1.95  # m, the task's floor
 P = gv.PAPER_ARM
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-
-
-def load_average() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
 # ----------------------------------------------------------------------------- PyElastica

@@ -31,7 +31,6 @@ import json
 import math
 import os
 import resource
-import subprocess
 import sys
 import time
 
@@ -42,15 +41,11 @@ import numpy as np
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_sim import actions, make_throws, timed  # noqa: E402
+from bench_sim import actions, load_average, make_throws, timed  # noqa: E402
 
 THETA_F = math.radians(210.0)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIG = os.path.join(ROOT, "figures")
-
-
-def load_average() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
 def vs_batch(batches, n_steps=300):
@@ -160,9 +155,9 @@ def vs_ppo(num_envs_list):
 def compile_times(tasks=("basketball", "pickplace")):
     """Compile time of the training program ``python -m gvsjax.train task=...`` runs
     (``_update_fn`` with the CLI's updates per call) and of the env's parameter tables."""
-    from gvsjax.ppo.train import init, num_updates
+    from gvsjax.ppo.train import init
     from gvsjax.tasks import make
-    from gvsjax.train import _update_fn, build_config
+    from gvsjax.train import _update_fn, build_config, default_updates_per_call
 
     rows = []
     for task in tasks:
@@ -173,8 +168,7 @@ def compile_times(tasks=("basketball", "pickplace")):
         params_s = time.perf_counter() - t0
         config = build_config(task, "none", {})
         state = init(config, env, env_params, jax.random.PRNGKey(0))
-        total = num_updates(config, env.episode_length)
-        per_call = max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
+        per_call = default_updates_per_call(config, env.episode_length)
         fn = _update_fn(task, config, env, env_params, per_call)
         t0 = time.perf_counter()
         fn.lower(state).compile()

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import time
 
 import jax
@@ -39,6 +40,11 @@ def actions(batch: int, seed: int = 0):
     k1, k2 = jax.random.split(jax.random.PRNGKey(seed))
     return (jax.random.uniform(k1, (batch,), minval=0.5, maxval=3.0),
             jax.random.uniform(k2, (batch,), minval=0.85, maxval=1.0))
+
+
+def load_average() -> str:
+    """``uptime``'s line, recorded beside every benchmark figure (shared by the bench scripts)."""
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
 def timed(fn, *args, repeats: int = 3) -> tuple[float, float]:

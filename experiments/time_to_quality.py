@@ -10,7 +10,7 @@ reported apart). Prints when each quality level is first reached:
 * ``paper``: 100% of targets within 10 cm and >= 55% within 1 cm (Armanini et al.);
 * ``55% < 1 cm`` and ``99% < 10 cm`` separately; ``90% < 1 cm`` (issue 7's aim).
 
-    python experiments/time_to_quality.py [--seed 0] [--json out.json] [key=value ...]
+    python experiments/time_to_quality.py [--json out.json] [seed=0 ...any gvsjax.train key=value]
 """
 
 from __future__ import annotations
@@ -20,13 +20,13 @@ import json
 import time
 
 import jax
-import numpy as np
+from bench_sim import load_average  # experiments/ is on sys.path when run as a script
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.evaluate import metrics, rollout
 from gvsjax.ppo import init, make_update, num_updates
 from gvsjax.tasks import make
-from gvsjax.train import build_config, parse_args, training_params
+from gvsjax.train import build_config, default_updates_per_call, parse_args, training_params
 
 LEVELS = {
     "paper (100% < 10 cm, >= 55% < 1 cm)": lambda m: m["success_rate_10cm"] >= 1.0 and m["within_1cm"] >= 0.55,
@@ -48,7 +48,7 @@ def main(argv=None) -> dict:
     eval_params, train_params = env.default_params(), training_params(env, run["train_targets"])
     eval_seed = 1_000_003 + config.seed
     state = init(config, env, train_params, jax.random.PRNGKey(config.seed))
-    per_call = max(1, 8192 // (config.num_envs * config.num_steps))
+    per_call = default_updates_per_call(config, env.episode_length)
     step = make_update(config, env, train_params, updates_per_call=per_call)
     total = num_updates(config, env.episode_length)
     clock, curve, first = 0.0, [], {}
@@ -69,7 +69,7 @@ def main(argv=None) -> dict:
         print(f"{clock:7.1f} s {row['episodes']:8d} ep  <10cm {m['success_rate_10cm']:.3f}  "
               f"<1cm {m['within_1cm']:.3f}  median {100 * m['median_m']:.2f} cm  max {100 * m['max_m']:.1f} cm",
               flush=True)
-    print(f"\nfirst call (compile + {per_call} updates): {compile_s:.1f} s; machine load: {_load()}")
+    print(f"\nfirst call (compile + {per_call} updates): {compile_s:.1f} s; machine load: {load_average()}")
     print("| quality | first reached at (s of training) | episodes |\n|---|---|---|")
     for name in LEVELS:
         hit = first.get(name)
@@ -77,20 +77,12 @@ def main(argv=None) -> dict:
     result = {"config": {k: getattr(config, k) for k in ("seed", "num_envs", "total_episodes", "antithetic",
                                                           "adaptive_kl", "learning_rate")},
               "train_targets": run["train_targets"], "eval_seed": eval_seed, "compile_s": compile_s,
-              "first": first, "curve": curve, "load": _load()}
+              "first": first, "curve": curve, "load": load_average()}
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=1)
     return result
 
 
-def _load() -> str:
-    try:
-        return " ".join(open("/proc/loadavg").read().split()[:3])
-    except OSError:
-        return "n/a"
-
-
 if __name__ == "__main__":
-    np.set_printoptions(precision=3)
     main()

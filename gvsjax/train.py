@@ -193,6 +193,12 @@ def config_from_json(d: dict, source: str = "config") -> PPOConfig:
 _STEP_CACHE: dict[tuple, Any] = {}  # jitted update functions, reused within one process
 
 
+def default_updates_per_call(config: PPOConfig, episode_length: int) -> int:
+    """~8k env steps per jitted call: a responsive progress bar without Python overhead per update."""
+    total = num_updates(config, episode_length)
+    return max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
+
+
 def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targets: str = ""):
     # The update never reads the seed (the PRNG key is in TrainState), so runs differing only
     # in seed share one program: a seed sweep in one process compiles once (soak: each new
@@ -351,9 +357,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     if run["resume"]:
         state = checkpoint.restore_state(state, meta["train_state"])
     total = num_updates(config, env.episode_length)
-    # ~8k episodes per jitted call: a responsive bar without Python overhead per update
-    per_call = run.get("updates_per_call") or max(
-        1, min(total, 8192 // (config.num_envs * config.num_steps)))
+    per_call = run.get("updates_per_call") or default_updates_per_call(config, env.episode_length)
     step_fn = _update_fn(task, config, env, env_params, per_call, run["train_targets"])
     log = MetricsLog(out, int(state.update) if run["resume"] else None)
     setup_s = time.perf_counter() - t0
