@@ -171,8 +171,8 @@ def simulate(
     tendon_force: None, a tension >= 0 (N) or a callable t -> tension(s).
     q0, qd0: (n,) initial coordinates/velocities (default: rest); entries of
     prescribed DoFs are replaced by the law at t = 0.
-    integrator: "rk4" (default), "midpoint", "euler" or "imex" (see
-    ``gvsjax.integrators``). save_every: keep every k-th state.
+    integrator: "rk4" (default), "midpoint", "euler", "imex" or "ars443"
+    (see ``gvsjax.integrators``). save_every: keep every k-th state.
 
     The compiled program is cached per robot structure, step count and
     control functions: calling again with new numbers does not recompile.
@@ -330,7 +330,7 @@ def linear_matrices(robot: Robot, q0: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def stable_step_estimate(robot: Robot, integrator: str, q0: np.ndarray) -> float:
     """Largest stable dt of the linearised free dynamics at q0 (gravity and
     centrifugal stiffening left out: they move the estimate by a few %)."""
-    if integrator == "imex" or not robot.free:
+    if integrator in ("imex", "ars443") or not robot.free:
         return math.inf
     M, K, D = linear_matrices(robot, q0)
     Minv = np.linalg.inv(M)

@@ -1,8 +1,12 @@
 """Each integrator converges at its documented order on the fast throw."""
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
+from fractions import Fraction
+
 import numpy as np
 import pytest
+
+from gvsjax import integrators
 
 THETA_F, T = np.deg2rad(210.0), 0.5
 ARM = gv.paper_arm(tip_force=5.886)
@@ -25,9 +29,49 @@ def reference():
 
 
 @pytest.mark.parametrize("integrator, order, n", [("rk4", 4, 100), ("midpoint", 2, 400),
-                                                  ("euler", 1, 800), ("imex", 1, 800)])
+                                                  ("euler", 1, 800), ("imex", 1, 800),
+                                                  ("ars443", 3, 800)])
 def test_observed_order(integrator, order, n):
     e1 = np.linalg.norm(release_tip(integrator, n) - reference())
     e2 = np.linalg.norm(release_tip(integrator, 2 * n) - reference())
     observed = np.log2(e1 / e2)
     assert observed == pytest.approx(order, abs=0.35), (e1, e2)
+
+
+def test_ars443_tableau_order_conditions():
+    """The stored ARS(4,4,3) pair meets every order-1..3 condition of an additive RK
+    method, checked against the paper's rational entries (diagonal 1/2 restored)."""
+    E = np.zeros((5, 5))
+    E[1:, :4] = np.asarray(integrators._ARS443_E)
+    I = np.zeros((5, 5))
+    I[1:, :4] = np.asarray(integrators._ARS443_I)
+    I[1:, 1:] += 0.5 * np.eye(4)
+    rational_I = [[0, 0, 0, 0, 0], [0, Fraction(1, 2), 0, 0, 0], [0, Fraction(1, 6), Fraction(1, 2), 0, 0],
+                  [0, Fraction(-1, 2), Fraction(1, 2), Fraction(1, 2), 0],
+                  [0, Fraction(3, 2), Fraction(-3, 2), Fraction(1, 2), Fraction(1, 2)]]
+    np.testing.assert_allclose(I, np.array(rational_I, dtype=float), atol=1e-15)
+    c = E.sum(1)
+    np.testing.assert_allclose(I.sum(1), c, atol=1e-15)  # same abscissae in both halves
+    np.testing.assert_allclose(c[1:], np.asarray(integrators._ARS443_C), atol=1e-15)
+    bE, bI = E[4], I[4]  # stiffly accurate: the step is the last stage
+    for b in (bE, bI):
+        assert b.sum() == pytest.approx(1.0, abs=1e-14)
+        assert b @ c == pytest.approx(1 / 2, abs=1e-14)
+        assert b @ c**2 == pytest.approx(1 / 3, abs=1e-14)
+        for A in (E, I):
+            assert b @ A @ c == pytest.approx(1 / 6, abs=1e-14)
+
+
+def test_ars443_beyond_rk4_stability():
+    """At 75 ms steps (5.4x RK4's limit on this arm) ARS(4,4,3) stays within 1 mm of a
+    converged RK4 run on the slowest throw, where RK4 itself diverges."""
+    T3 = 3.0
+
+    def tip(integrator, n):
+        traj = gv.simulate(ARM, T3, n_steps=n, base_angle=lambda t: THETA_F * (t / T3) ** 2,
+                           integrator=integrator, save_every=n, check_stability=False)
+        return np.asarray(traj.tip[-1])
+
+    ref = tip("rk4", 3000)
+    assert np.linalg.norm(tip("ars443", 40) - ref) < 1e-3
+    assert not np.linalg.norm(tip("rk4", 40) - ref) < 1.0  # RK4 at the same step: diverged (nan) or far off

@@ -27,6 +27,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gvsjax import checkpoint, train
+from gvsjax.integrators import INTEGRATORS
 from gvsjax.ppo import FIELD_DOCS
 from gvsjax.tasks import base
 from gvsjax.tasks import pickplace as pp
@@ -133,8 +134,7 @@ SIM_BAD = {
         st.floats(min_value=1e-4, max_value=0.5).filter(lambda d: abs(round(1 / d) * d - 1) > 1e-6))),
     "n_steps": st.builds(lambda k: dict(duration=1.0, n_steps=k), bad_count.filter(lambda v: v is not None)),
     "integrator": st.builds(lambda i: dict(duration=1.0, dt=1e-3, integrator=i),
-                            st.one_of(st.text(max_size=6).filter(lambda s: s not in ("rk4", "euler", "imex",
-                                                                                     "midpoint")),
+                            st.one_of(st.text(max_size=6).filter(lambda s: s not in INTEGRATORS),
                                       st.integers(), st.just(["rk4"]), st.none())),
     "save_every": st.builds(lambda k: dict(duration=1.0, dt=1e-3, save_every=k), st.one_of(
         st.integers(max_value=0), st.integers(1, 999).filter(lambda k: 1000 % k), st.booleans(),

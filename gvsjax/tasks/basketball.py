@@ -77,7 +77,8 @@ class BasketballParams:
     g: float = 9.81  # m/s^2, along -y
     y_floor: float = WINDOW[2]  # m, the flight ends here
     window: tuple = WINDOW  # m, (x_min, x_max, y_min, y_max): targets and obs scaling
-    n_steps: int = struct.field(pytree_node=False, default=300)  # RK4 steps to release
+    n_steps: int = struct.field(pytree_node=False, default=300)  # integrator steps to release
+    integrator: str = struct.field(pytree_node=False, default="rk4")  # see gvsjax.integrators
     # "action": a uniform random action, a point uniform in flight time on its in-window path;
     # "area": uniform in area over the cells the paths cover (harder: more far targets);
     # "mixed": either of the two with probability 1/2
@@ -127,7 +128,7 @@ def release_state(params: BasketballParams, T, delta) -> tuple[jax.Array, jax.Ar
     """Simulate the arm to t_rel = delta T: tip position (2,) m and velocity (2,) m/s."""
     law = lambda t: params.theta_final * (t / T) ** 2  # noqa: E731
     traj = gv.simulate(params.arm, delta * T, n_steps=params.n_steps, base_angle=law,
-                       save_every=params.n_steps, check_stability=False)
+                       save_every=params.n_steps, integrator=params.integrator, check_stability=False)
     return traj.tip[-1, :2], traj.tip_velocity[-1, :2]
 
 
