@@ -15,8 +15,9 @@ Runs, in order (each step reuses the project's own scripts and modules):
 5. an index of the folder: ``README.md`` and ``index.json`` (file -> paper figure, description).
 
 ``--quick`` trains briefly (minutes in all: the figures show the pipeline, not the final
-quality); the default uses the paper-quality settings of the README (basketball 800k episodes,
-pick and place 120k; ~25 min on an idle 2-core machine, mostly training; not timed since the 800k default).
+quality); the default uses the paper-quality settings of the README (basketball 1.2M episodes,
+pick and place 120k; ~15-20 min on an idle 2-core machine, mostly training; not timed since the 1.2M
+default).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from gvsjax import train
 
 SETTINGS = {  # per mode: PPO episodes, evaluation targets, baseline sizes
     "quick": {"bb_episodes": 40_960, "pp_episodes": 10_240, "eval_targets": 200, "pp_baseline_pairs": 4},
-    "full": {"bb_episodes": 800_000, "pp_episodes": 120_000, "eval_targets": 1000, "pp_baseline_pairs": 16},
+    "full": {"bb_episodes": 1_200_000, "pp_episodes": 120_000, "eval_targets": 1000, "pp_baseline_pairs": 16},
 }
 EVAL_SEED = 1_000_003  # the evaluation targets (train's default for seed 0; never used in training)
 

@@ -30,7 +30,9 @@ from gvsjax.evaluate import parse_key_values
 from gvsjax.tasks import basketball as bb
 from gvsjax.tasks import pickplace as pp
 
-SWING_STEPS, SWING_SAVE = 300, 5  # RK4 steps to release (the task's), keep every 5th state
+# RK4 steps to release and every 5th state kept: 60 frames of the swing (the task itself
+# takes 40 ars443 steps; the two releases agree within 0.5 mm)
+SWING_STEPS, SWING_SAVE = 300, 5
 
 
 def _shapes(arm, q) -> np.ndarray:

@@ -55,12 +55,12 @@ TASK_DEFAULTS: dict[str, dict[str, Any]] = {
     # critic's error leaves the gradient), a KL-adaptive rate (the mean otherwise jumps by
     # several stds per update, KL up to 200), clipped-action log-probs (the top-right corner
     # needs T = 0.5 s, the box's edge, where the plain density feeds noise into the trunk),
-    # 800k episodes, and training targets "mixed" (basketball.TRAIN_TARGETS).
+    # 1.2M episodes, and training targets "mixed" (basketball.TRAIN_TARGETS).
     # Issue 7's note has the ablation.
     "basketball": dict(
         num_envs=1024, num_steps=1, num_minibatches=8, update_epochs=8,
         learning_rate=1e-3, anneal_lr=True, clip_eps=0.2, ent_coef=0.0,
-        init_log_std=-1.0, min_log_std=-7.0, finetune_fraction=0.0, total_episodes=800_000,
+        init_log_std=-1.0, min_log_std=-7.0, finetune_fraction=0.0, total_episodes=1_200_000,
         antithetic=True, adaptive_kl=0.02, clipped_log_prob=True,
     ),
 }

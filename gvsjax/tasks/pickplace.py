@@ -2,7 +2,7 @@
 
 Physics. The paper's arm with one tendon at 2.5 cm from the midline
 (``gv.paper_arm(tendon_offset=0.025)``, q = (theta, q1, q2)), gravity on, no
-ball. In each step of ``step_time`` = 5 s (``n_steps`` RK4 steps) the base
+ball. In each step of ``step_time`` = 5 s (``n_steps`` RK4 steps by default) the base
 angle moves from its current value theta_0 to the commanded theta_F on the
 cycloidal profile of gvs-notes 9.6,
 
@@ -89,7 +89,8 @@ class PickPlaceParams:
     # "polar": target as (angle from the hanging direction / pi, radial offset), so the
     # +-pi seam of the joint's range is in the input too; "cartesian": (x, y) / target_scale
     target_obs: str = struct.field(pytree_node=False, default="polar")
-    n_steps: int = struct.field(pytree_node=False, default=500)  # RK4 steps per 5 s step
+    n_steps: int = struct.field(pytree_node=False, default=500)  # integrator steps per 5 s step
+    integrator: str = struct.field(pytree_node=False, default="rk4")  # see gvsjax.integrators
     split: str = struct.field(pytree_node=False, default="train")  # "train", "test" or "all"
     n_test: int = struct.field(pytree_node=False, default=0)  # held-out rows at the table's end
     # target tables, P rows (see module docstring); None in a bare PickPlaceParams(...),
@@ -144,7 +145,7 @@ def run_step(params: PickPlaceParams, q, qd, tension0, theta_final, tension, sav
     angle, pull = controls(q[0], theta_final, tension0, tension, params.step_time)
     return gv.simulate(params.arm, params.step_time, n_steps=params.n_steps, base_angle=angle,
                        tendon_force=pull, q0=q, qd0=qd, save_every=save_every or params.n_steps,
-                       check_stability=False)
+                       integrator=params.integrator, check_stability=False)
 
 
 def episode(params: PickPlaceParams, actions, save_every=None):
@@ -203,7 +204,7 @@ def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
     arm = overrides.pop("arm", None)
     base = PickPlaceParams(arm=arm if arm is not None else gv.paper_arm(tendon_offset=0.025),
                            n_test=n_test, **overrides)
-    table_key = (n_pairs, seed, base.n_steps, base.step_time, base.angle_max, base.tension_max)
+    table_key = (n_pairs, seed, base.n_steps, base.integrator, base.step_time, base.angle_max, base.tension_max)
     if arm is not None:
         tables = _tables(base, n_pairs, seed)
     else:
