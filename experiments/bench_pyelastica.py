@@ -28,7 +28,8 @@ velocity to theta'(t)), gravity (``GravityForces``), the tip force
   also drags the rigid swing. Reported to quantify that mismatch.
 
 gvsjax: ``gv.paper_arm(tip_force=5.886)`` (2 monomial bending modes, 5 Gauss
-points), 300 RK4 steps per throw (the task's default).
+points), the basketball task's default integration (40 ``ars443`` steps per
+throw); 300 RK4 steps per throw (the stable RK4 peer) is timed in the same run.
 
     python experiments/bench_pyelastica.py                 # all parts, ~10 min on 2 shared cores
     python experiments/bench_pyelastica.py --quick         # fewer stability/extrapolation runs
@@ -50,7 +51,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from bench_sim import load_average, timed  # experiments/ is on sys.path when run as a script
+from bench_sim import configurations, load_average, timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
@@ -228,12 +229,12 @@ def largest_stable_dt(T, delta, lo=1e-5, hi=1e-3, iters=6):
 
 # ----------------------------------------------------------------------------- gvsjax
 
-def gvsjax_release_fn(n_steps=300, **arm):
+def gvsjax_release_fn(n_steps=300, integrator="rk4", **arm):
     robot = gv.paper_arm(tip_force=BALL, **arm)
 
     def rel(T, delta):
         traj = gv.simulate(robot, delta * T, n_steps=n_steps, save_every=n_steps, check_stability=False,
-                           base_angle=lambda t: THETA_F * (t / T) ** 2)
+                           integrator=integrator, base_angle=lambda t: THETA_F * (t / T) ** 2)
         return traj.tip[-1], traj.tip_velocity[-1]
 
     return rel
@@ -351,18 +352,25 @@ def main() -> None:
     pe_lin = pyelastica_throw(T, delta, dt, args.n_elements, damping="linear")
     pe_none = pyelastica_throw(T, delta, dt, args.n_elements, damping="none")
 
-    # --- gvsjax at the task's default accuracy (300 RK4 steps), batch 1
-    rel = jax.jit(gvsjax_release_fn())
-    compile1, run1 = timed(rel, T, delta, repeats=20)
-    p_gv, v_gv = (np.asarray(a) for a in rel(T, delta))
-
-    # --- batch 1024 (T ~ U[0.5, 3], delta ~ U[0.85, 1])
+    # --- gvsjax: the task's default integration and the RK4 peer, batch 1 and batch 1024
+    # (T ~ U[0.5, 3], delta ~ U[0.85, 1])
     k1, k2 = jax.random.split(jax.random.PRNGKey(0))
     Tb = jax.random.uniform(k1, (1024,), minval=0.5, maxval=3.0)
     db = jax.random.uniform(k2, (1024,), minval=0.85, maxval=1.0)
-    relb = jax.jit(jax.vmap(gvsjax_release_fn()))
-    compileb, runb = timed(relb, Tb, db, repeats=5)
     sim_seconds = float(jnp.sum(Tb * db))
+    gvsjax_runs = []
+    for integrator, n_steps in configurations():
+        rel = jax.jit(gvsjax_release_fn(n_steps, integrator))
+        compile1, run1 = timed(rel, T, delta, repeats=20)
+        p, v = (np.asarray(a) for a in rel(T, delta))
+        compileb, runb = timed(jax.jit(jax.vmap(gvsjax_release_fn(n_steps, integrator))), Tb, db, repeats=5)
+        gvsjax_runs.append(dict(integrator=integrator, n_steps=n_steps, batch1_s=run1, batch1_compile_s=compile1,
+                                batch1024_s=runb, batch1024_compile_s=compileb, tip=p.tolist(),
+                                tip_velocity=v.tolist()))
+    default = gvsjax_runs[0]
+    run1, compile1, runb, compileb = (default[k] for k in ("batch1_s", "batch1_compile_s", "batch1024_s",
+                                                             "batch1024_compile_s"))
+    p_gv, v_gv = np.asarray(default["tip"]), np.asarray(default["tip_velocity"])
     # PyElastica looped: time a few throws of the batch, extrapolate linearly in simulated time
     n_ex = 2 if args.quick else args.extrapolate_throws
     t_ex, s_ex = 0.0, 0.0
@@ -378,7 +386,8 @@ def main() -> None:
     swing2 = jax.jit(lambda: gv.simulate(gv.paper_arm(tip_force=BALL), T * delta, n_steps=1800, check_stability=False,
                                           base_angle=lambda t: THETA_F * (t / T) ** 2, save_every=18).tip)()
     paths = {
-        "gvsjax, 2 modes (300 RK4 steps)": (np.asarray(swing2)[:, :2], flight(p_gv, v_gv)[0]),
+        f"gvsjax, 2 modes ({default['n_steps']} {default['integrator']} steps)":
+            (np.asarray(swing2)[:, :2], flight(p_gv, v_gv)[0]),
         f"gvsjax, {best['n_modes']} Legendre modes (converged)":
             (None, flight(np.array(best["tip"]), np.array(best["tip_velocity"]))[0]),
         f"PyElastica, {args.n_elements} elements, KV damping": (pe["path"][:, :2],
@@ -392,7 +401,7 @@ def main() -> None:
     d = lambda a, b: 1e2 * float(np.linalg.norm(np.asarray(a)[:2] - np.asarray(b)[:2]))  # noqa: E731
     res = dict(
         T=T, delta=delta, n_elements=args.n_elements, pyelastica_dt=dt, pyelastica_steps=pe["n_steps"],
-        gvsjax_steps=300,
+        gvsjax_integrator=default["integrator"], gvsjax_steps=default["n_steps"], gvsjax_runs=gvsjax_runs,
         batch1=dict(gvsjax_s=run1, gvsjax_compile_s=compile1, pyelastica_s=pe["wall_s"],
                     pyelastica_setup_s=pe["setup_s"], ratio=pe["wall_s"] / run1),
         batch1024=dict(gvsjax_s=runb, gvsjax_compile_s=compileb, pyelastica_s_extrapolated=pe_batch_s,
@@ -423,13 +432,19 @@ def print_tables(r: dict) -> None:
     b1, bb, rel = r["batch1"], r["batch1024"], r["release"]
     print(f"\nT = {r['T']} s, delta = {r['delta']}; PyElastica {r['n_elements']} elements, "
           f"dt = {r['pyelastica_dt']:.3g} s ({r['pyelastica_steps']} steps); "
-          f"gvsjax 2 modes, {r['gvsjax_steps']} RK4 steps\n")
+          f"gvsjax 2 modes, {r['gvsjax_steps']} {r['gvsjax_integrator']} steps\n")
     print("| batch | gvsjax wall s | PyElastica wall s | ratio | gvsjax compile s |")
     print("|---|---|---|---|---|")
     print(f"| 1 | {b1['gvsjax_s']:.2e} | {b1['pyelastica_s']:.2f} | {b1['ratio']:,.0f}x | "
           f"{b1['gvsjax_compile_s']:.1f} |")
     print(f"| 1024 | {bb['gvsjax_s']:.3f} | {bb['pyelastica_s_extrapolated']:.0f} (extrapolated from "
           f"{bb['pyelastica_throws_timed']} throws) | {bb['ratio']:,.0f}x | {bb['gvsjax_compile_s']:.1f} |")
+    print("\n| gvsjax integration | batch 1 s | ratio | batch 1024 s | ratio |")
+    print("|---|---|---|---|---|")
+    for g in r["gvsjax_runs"]:
+        print(f"| {g['n_steps']} {g['integrator']} steps | {g['batch1_s']:.2e} | "
+              f"{b1['pyelastica_s'] / g['batch1_s']:,.0f}x | {g['batch1024_s']:.3f} | "
+              f"{bb['pyelastica_s_extrapolated'] / g['batch1024_s']:,.0f}x |")
     print("\n| release tip position difference | cm |")
     print("|---|---|")
     for k, v in rel["d_tip_cm"].items():

@@ -1,14 +1,15 @@
 """Scaling of the simulator and of one PPO update (issue 4, item 3).
 
-1. batch: throws/s (the paper's swing to release, 300 RK4 steps, T ~ U[0.5, 3] s,
-   delta ~ U[0.85, 1]) and basketball env-steps/s (``env.step``: the throw plus
-   the flight/cost; one step = one throw) vs batch size 1 ... 16384.
+1. batch: throws/s (the paper's swing to release with the task's default
+   integration, 40 ars443 steps, T ~ U[0.5, 3] s, delta ~ U[0.85, 1]) and
+   basketball env-steps/s (``env.step``: the throw plus the flight/cost; one
+   step = one throw) vs batch size 1 ... 16384.
 2. model size: RK4 steps/s at batch 1024 vs n_gauss (2 modes) and vs the number
    of strain modes (Legendre, n_gauss = max(5, n_modes + 2)), with each model's
    linearised RK4 stability limit and the throws/s that limit allows (a 3 s
    throw needs 3 s / dt_max steps; many modes are stiff).
-3. dt: throws/s at batch 1024 vs the RK4 step (n_steps per throw) with the worst
-   release position error vs 10x the steps.
+3. dt: throws/s at batch 1024 vs the step (n_steps per throw) of ars443 and of
+   RK4, with the worst release position error vs converged RK4 (3000 steps).
 4. PPO: wall time of one update (``gvsjax.ppo.train.make_update``, the path
    ``python -m gvsjax.train`` runs; basketball defaults) vs num_envs, and XLA's
    planned memory of the compiled update (``compile().memory_analysis()``:
@@ -41,17 +42,18 @@ import numpy as np
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_sim import actions, load_average, make_throws, timed  # noqa: E402
+from bench_sim import actions, configurations, load_average, make_throws, timed  # noqa: E402
 
 THETA_F = math.radians(210.0)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIG = os.path.join(ROOT, "figures")
 
 
-def vs_batch(batches, n_steps=300):
+def vs_batch(batches):
     from gvsjax.tasks import make
 
-    throws = make_throws(n_steps)
+    integrator, n_steps = configurations()[0]
+    throws = make_throws(n_steps, integrator)
     env = make("basketball")
     params = env.default_params()
 
@@ -68,7 +70,8 @@ def vs_batch(batches, n_steps=300):
         keys = jax.random.split(jax.random.PRNGKey(1), b)
         acts = jax.random.uniform(jax.random.PRNGKey(2), (b, 2), minval=-1.0, maxval=1.0)
         ce, re = timed(env_steps, keys, acts, repeats=reps)
-        rows.append(dict(batch=b, throws_per_s=b / r, rk4_steps_per_s=b * n_steps / r, compile_s=c,
+        rows.append(dict(batch=b, integrator=integrator, n_steps=n_steps, throws_per_s=b / r,
+                         steps_per_s=b * n_steps / r, compile_s=c,
                          env_steps_per_s=b / re, env_compile_s=ce))
         print(f"batch {b}: {b / r:,.0f} throws/s, {b / re:,.0f} env-steps/s", flush=True)
     return rows
@@ -100,18 +103,22 @@ def vs_model(configs, batch=1024, n_steps=100):
     return rows
 
 
-def vs_dt(step_counts, batch=1024):
+DT_STEPS = {"ars443": (20, 24, 32, 40, 48, 60, 80), "rk4": (150, 200, 217, 240, 300, 400, 600)}
+
+
+def vs_dt(step_counts=DT_STEPS, batch=1024):
     T, d = actions(batch)
     probe = actions(128, seed=3)
+    converged = np.asarray(make_throws(3000)(*probe)[0])
     rows = []
-    for n in step_counts:
-        fn = make_throws(n)
-        c, r = timed(fn, T, d)
-        coarse = np.asarray(fn(*probe)[0])
-        fine = np.asarray(make_throws(10 * n)(*probe)[0])
-        err = float(np.max(np.linalg.norm(coarse - fine, axis=-1)))
-        rows.append(dict(n_steps=n, dt_max_ms=3e3 / n, throws_per_s=batch / r, release_error_m=err, compile_s=c))
-        print(f"n_steps {n}: {batch / r:,.0f} throws/s, error {err * 1e3:.2e} mm", flush=True)
+    for integrator, counts in step_counts.items():
+        for n in counts:
+            fn = make_throws(n, integrator)
+            c, r = timed(fn, T, d)
+            err = float(np.max(np.linalg.norm(np.asarray(fn(*probe)[0]) - converged, axis=-1)))
+            rows.append(dict(integrator=integrator, n_steps=n, dt_max_ms=3e3 / n, throws_per_s=batch / r,
+                             release_error_m=err, compile_s=c))
+            print(f"{integrator} n_steps {n}: {batch / r:,.0f} throws/s, error {err * 1e3:.2e} mm", flush=True)
     return rows
 
 
@@ -214,7 +221,7 @@ def _plot_batch(plt, b):
     ax.axhline(3000, color="gray", lw=0.8, ls=":", label="target 3,000/s")
     ax.set_xlabel("batch")
     ax.set_ylabel("per second")
-    ax.set_title("Basketball throws, 300 RK4 steps each")
+    ax.set_title(f"Basketball throws, {b[0].get('n_steps', 300)} {b[0].get('integrator', 'rk4')} steps each")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(FIG, "bench_scaling_batch.png"), dpi=130)
@@ -239,14 +246,19 @@ def _plot_model(plt, m):
 
 
 def _plot_dt(plt, d):
+    """Cost against accuracy, one line per integrator (old JSON without the key: RK4)."""
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    ax.loglog([r["dt_max_ms"] for r in d], [r["throws_per_s"] for r in d], "o-", label="throws/s")
-    ax2 = ax.twinx()
-    ax2.loglog([r["dt_max_ms"] for r in d], [max(r["release_error_m"], 1e-12) * 1e3 for r in d], "s--", color="C1",
-               label="release error (mm)")
-    ax.set_xlabel("largest dt in the batch (ms) = 3 s / n_steps")
+    for name in dict.fromkeys(r.get("integrator", "rk4") for r in d):
+        rows = [r for r in d if r.get("integrator", "rk4") == name and np.isfinite(r["release_error_m"])]
+        ax.loglog([max(r["release_error_m"], 1e-12) * 1e3 for r in rows], [r["throws_per_s"] for r in rows], "o-",
+                  label=name)
+        for r in rows:
+            ax.annotate(str(r["n_steps"]), (max(r["release_error_m"], 1e-12) * 1e3, r["throws_per_s"]), fontsize=7)
+    ax.axvline(1.0, color="gray", lw=0.8, ls=":", label="1 mm target")
+    ax.set_xlabel("worst release error vs converged RK4 (mm)")
     ax.set_ylabel("throws/s, batch 1024")
-    ax2.set_ylabel("release error vs 10x steps (mm)", color="C1")
+    ax.set_title("Accuracy per cost (labels: steps per throw)")
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(FIG, "bench_scaling_dt.png"), dpi=130)
     plt.close(fig)
@@ -271,20 +283,20 @@ def print_tables(res):
         if name + "_load" in res:
             print(f"{name}: load {res[name + '_load'][0]} -> {res[name + '_load'][1]}")
     res = {k: res.get(k, []) for k in ("batch", "model", "dt", "ppo", "compile")}
-    print("\n| batch | throws/s | RK4 steps/s | env-steps/s | compile s |")
+    print("\n| batch | throws/s | integrator steps/s | env-steps/s | compile s |")
     print("|---|---|---|---|---|")
     for r in res["batch"]:
-        print(f"| {r['batch']} | {r['throws_per_s']:,.0f} | {r['rk4_steps_per_s']:.3g} | "
+        print(f"| {r['batch']} | {r['throws_per_s']:,.0f} | {r['steps_per_s']:.3g} | "
               f"{r['env_steps_per_s']:,.0f} | {r['compile_s']:.1f} |")
     print("\n| n_modes | n_gauss | RK4 steps/s (batch 1024) | stable dt (ms) | 3 s throws/s at that dt | compile s |")
     print("|---|---|---|---|---|---|")
     for r in res["model"]:
         print(f"| {r['n_modes']} | {r['n_gauss']} | {r['rk4_steps_per_s']:.3g} | {r['dt_max_s'] * 1e3:.3g} | "
               f"{r['throws_per_s_at_dt_max']:,.1f} | {r['compile_s']:.1f} |")
-    print("\n| RK4 steps per throw | largest dt (ms) | throws/s (batch 1024) | release error (mm) |")
-    print("|---|---|---|---|")
+    print("\n| integrator | steps per throw | largest dt (ms) | throws/s (batch 1024) | release error (mm) |")
+    print("|---|---|---|---|---|")
     for r in res["dt"]:
-        print(f"| {r['n_steps']} | {r['dt_max_ms']:.1f} | {r['throws_per_s']:,.0f} | "
+        print(f"| {r['integrator']} | {r['n_steps']} | {r['dt_max_ms']:.1f} | {r['throws_per_s']:,.0f} | "
               f"{r['release_error_m'] * 1e3:.2e} |")
     print("\n| num_envs | one update (s) | episodes/s | XLA planned MiB | peak RSS so far MiB | compile s |")
     print("|---|---|---|---|---|---|")
@@ -318,7 +330,7 @@ def main() -> None:
         ("batch", lambda: vs_batch([1, 16, 256, 1024, 4096] if q else [1, 4, 16, 64, 256, 1024, 4096, 16384])),
         ("model", lambda: vs_model([(2, 3), (2, 5), (2, 8), (2, 12), (1, 5), (3, 5), (4, 6), (6, 8)] if q else
                                    [(2, 3), (2, 5), (2, 8), (2, 12), (2, 16), (1, 5), (3, 5), (4, 6), (6, 8)])),
-        ("dt", lambda: vs_dt([240, 300, 600] if q else [200, 240, 300, 400, 600, 1200])),
+        ("dt", lambda: vs_dt({"ars443": (32, 40, 60), "rk4": (240, 300, 600)} if q else DT_STEPS)),
         ("compile", compile_times),
         ("ppo", lambda: vs_ppo([int(n) for n in args.ppo_envs.split(",")] if args.ppo_envs else
                                [256, 1024, 4096] if q else [64, 256, 1024, 4096, 16384])),

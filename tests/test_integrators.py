@@ -74,4 +74,7 @@ def test_ars443_beyond_rk4_stability():
 
     ref = tip("rk4", 3000)
     assert np.linalg.norm(tip("ars443", 40) - ref) < 1e-3
+    q0 = np.zeros(ARM.n_dofs)
+    assert gv.stable_step_estimate(ARM, "ars443", q0) == np.inf  # so simulate accepts dt = 75 ms
+    assert gv.stable_step_estimate(ARM, "rk4", q0) < T3 / 40
     assert not np.linalg.norm(tip("rk4", 40) - ref) < 1.0  # RK4 at the same step: diverged (nan) or far off

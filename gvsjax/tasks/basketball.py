@@ -5,8 +5,9 @@ base driven by theta(t) = theta_F (t/T)^2, theta_F = 210 deg. The ball (0.6 kg)
 is a constant 5.886 N force along -y on the tip until release at
 t_rel = delta T; only [0, t_rel] is simulated (``n_steps`` = 40 steps of the
 ``ars443`` IMEX integrator, dt = t_rel / n_steps <= 75 ms: every release within
-0.5 mm of a converged run; RK4 would need >= 217 steps for stability alone). The ball then flies ballistically from the tip's
-release position p0 and velocity v0 (world x-y, m and m/s):
+0.5 mm of a converged run; RK4 would need >= 217 steps for stability alone).
+The ball then flies ballistically from the tip's release position p0 and
+velocity v0 (world x-y, m and m/s):
 p(tau) = p0 + v0 tau + (0, -g) tau^2 / 2.
 
 Flight path. tau runs from 0 (release) to the moment the ball reaches the
