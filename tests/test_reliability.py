@@ -371,7 +371,7 @@ def test_pickplace_non_finite_action_is_replaced_by_the_centre_and_flagged():
 def test_pickplace_blow_up_is_flagged_even_while_finite():
     # 300 RK4 steps per 5 s step: dt = 16.7 ms, above the 13.9 ms stability limit; the
     # integration grows without reaching inf, so only the magnitude bound can catch it
-    params = pp.PickPlaceParams(arm=TENDON_ARM, n_steps=300)
+    params = pp.PickPlaceParams(arm=TENDON_ARM, n_steps=300, integrator="rk4")
     action = jnp.array([[1.0 / math.pi, -1.0 / 3.0]])  # theta_F = 1 rad, 10 N
 
     @jax.jit
