@@ -63,13 +63,12 @@ def timed(fn, *args, repeats: int = 3) -> tuple[float, float]:
     return first - float(np.median(runs)), float(np.median(runs))
 
 
-def configurations(task_default: bool = True) -> list[tuple[str, int]]:
+def configurations() -> list[tuple[str, int]]:
     """(integrator, n_steps): the basketball task's default, then the RK4 peer."""
     from gvsjax.tasks.basketball import BasketballParams
 
     fields = BasketballParams.__dataclass_fields__
-    default = (fields["integrator"].default, fields["n_steps"].default)
-    return [default, ("rk4", 300)] if task_default else [("rk4", 300)]
+    return [(fields["integrator"].default, fields["n_steps"].default), ("rk4", 300)]
 
 
 def main() -> None:
