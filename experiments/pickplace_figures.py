@@ -127,7 +127,7 @@ def fig6(params, actions, targets, path, every: int = 50) -> Path:
 
     Drawn from 500 RK4 steps per 5 s step for smooth curves (the task's 60 ars443 steps end
     within 0.2 mm of it)."""
-    params = params.replace(integrator="rk4", n_steps=500)
+    params = params.replace(**pp.DRAWING_INTEGRATION)
     save = 5
     tr1, tr2 = pp.episode(params, jnp.asarray(actions), save_every=save)
     theta, tension = (np.asarray(x) for x in pp.action_to_physical(jnp.asarray(actions), params))

@@ -131,7 +131,7 @@ def pickplace_gif(path, actions, targets=None, params=None, save_every: int = 25
     0.2 mm of it): one frame per ``save_every`` of them (25: every 0.25 s). Returns the GIF's path.
     """
     params = params if params is not None else pp.PickPlaceParams(arm=gv.paper_arm(tendon_offset=0.025))
-    params = params.replace(integrator="rk4", n_steps=500)
+    params = params.replace(**pp.DRAWING_INTEGRATION)
     a = np.asarray(actions, float)
     if a.shape != (2, 2) or not np.all(np.isfinite(a)) or np.abs(a).max() > 1:
         raise ValueError(f"actions={a.tolist()!r} must be (2, 2) numbers in [-1, 1]")

@@ -102,10 +102,6 @@ def _imex_euler(system, t, q, qd, dt):
     return _axpy(q, dt, qd1), qd1
 
 
-def _matvec(A, x):
-    return [lie.total([lie.mul(A[i][j], x[j]) for j in range(len(x))]) for i in range(len(A))]
-
-
 # ARS(4,4,3) (Ascher, Ruuth & Spiteri, Appl. Numer. Math. 1997): a third-order
 # IMEX Runge-Kutta pair, L-stable SDIRK part with a_ii = 1/2, stiffly accurate
 # (the step's result is its last stage). Row i holds stage i's coefficients.
@@ -132,7 +128,7 @@ def _ars443(system, t, q, qd, dt):
     A = [[lie.add(lie.add(M[i][j], lie.mul(a, D[i][j])), lie.mul(a * a, K[i][j])) for j in range(n)]
          for i in range(n)]
     arr = lambda xs: jnp.stack([lie.as_array(x) for x in xs])  # noqa: E731
-    elastic = [lie.add(x, y) for x, y in zip(_matvec(K, q), _matvec(D, qd))]
+    elastic = [lie.add(x, y) for x, y in zip(lie.matvec(K, q), lie.matvec(D, qd))]
     zeros = jnp.zeros((4, n), dtype=jnp.result_type(*q))
     # stage slots (4 x n): implicit q' and qd', explicit qd' (q' has no explicit part)
     g_q = zeros.at[0].set(jnp.stack(qd))
@@ -143,7 +139,7 @@ def _ars443(system, t, q, qd, dt):
     def solve_stage(i, g_q, g_v, e_v):
         Yq = q0 + dt * (_ARS443_I[i] @ g_q)
         Yv = qd0 + dt * (_ARS443_E[i] @ e_v + _ARS443_I[i] @ g_v)
-        m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(_matvec(M, list(Yv)), _matvec(K, list(Yq)))]
+        m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(lie.matvec(M, tuple(Yv)), lie.matvec(K, tuple(Yq)))]
         v = arr(lie.solve_spd(A, m))
         return Yq + a * v, v, Yv
 
