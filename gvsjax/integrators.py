@@ -77,12 +77,20 @@ def _semi_implicit_euler(system, t, q, qd, dt):
 
 
 def _midpoint(system, t, q, qd, dt, iterations: int = 2):
-    tm = t + dt / 2
-    q1, qd1 = _axpy(q, dt, qd), _axpy(qd, dt, system.accel(t, q, qd))  # Euler predictor
-    for _ in range(iterations):
+    """Implicit midpoint by fixed-point iterations from an Euler predictor.
+
+    Starting the iterate at (q, qd) makes the predictor the first pass of the
+    same update evaluated at t, so predictor and iterations run as one
+    ``lax.scan`` and the dynamics appear once in the compiled program."""
+    fractions = jnp.array([0.0] + [0.5] * iterations)
+
+    def one(carry, c):
+        q1, qd1 = carry
         qm = tuple((a + b) / 2 for a, b in zip(q, q1))
         qdm = tuple((a + b) / 2 for a, b in zip(qd, qd1))
-        q1, qd1 = _axpy(q, dt, qdm), _axpy(qd, dt, system.accel(tm, qm, qdm))
+        return (_axpy(q, dt, qdm), _axpy(qd, dt, system.accel(t + c * dt, qm, qdm))), None
+
+    (q1, qd1), _ = jax.lax.scan(one, (q, qd), fractions)
     return q1, qd1
 
 
