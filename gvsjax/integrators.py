@@ -155,7 +155,7 @@ def _ars443(system, t, q, qd, dt):
     # that computes it, XLA fused the whole dynamics into that in-place update, whose
     # lanes lie 4n elements apart: no SIMD across the batch, and at batch 1024 a step
     # cost 2x an RK4 step. Carried alone, it is a (batch, n) buffer laid out batch-
-    # contiguous: 2.1x the throws/s at batch 1024, the same at batch 1 (optimised HLO
+    # contiguous: 2.1x the throws/s at batch 1024, about the same at batch 1 (optimised HLO
     # and timings in the issue 4 notes).
     def stage(carry, i):
         g_q, g_v, e_v, acc_prev = carry
