@@ -45,6 +45,30 @@ class Integrator(NamedTuple):
 # States are tuples of scalars (one array per DoF), not stacked vectors: XLA
 # then fuses a whole step into elementwise loops over the batch instead of
 # re-deriving shared subexpressions for every lane of a stacked output.
+#
+# XLA's CPU backend forms no multi-output loop fusions, so n accelerations
+# leaving one evaluation of the dynamics become n fusions that each recompute
+# the whole recursion (or one (batch, n) fusion that does, per lane). Packed in
+# pairs as complex numbers, two come out of one fusion that computes the
+# recursion once. The pack must cross a loop boundary (a stage scan's carry)
+# before it is unpacked: in the same computation XLA folds real(complex(a, b))
+# back to a. Same arithmetic, same results; measured in the issue 4 notes.
+
+
+def _pack(xs) -> tuple:
+    """n real scalars as ceil(n/2) complex ones (the last imaginary part 0 for odd n)."""
+    xs = [lie.as_array(x) for x in xs]
+    if len(xs) % 2:
+        xs.append(jnp.zeros_like(xs[0]))
+    return tuple(jax.lax.complex(xs[k], xs[k + 1]) for k in range(0, len(xs), 2))
+
+
+def _unpack(packed, n: int) -> tuple:
+    """The n real scalars of ``_pack``."""
+    out = []
+    for c in packed:
+        out += [jnp.real(c), jnp.imag(c)]
+    return tuple(out[:n])
 
 
 def _axpy(x, a, y):
@@ -55,19 +79,27 @@ def _axpy(x, a, y):
 def _rk4(system, t, q, qd, dt):
     """Classical RK4. The four stages run as a 4-long ``lax.scan`` so the
     dynamics appear once in the compiled program (a quarter of the compile
-    time of an unrolled step, at the same run time)."""
-    c = jnp.array([0.0, 0.5, 0.5, 1.0])
-    b = jnp.array([1.0, 2.0, 2.0, 1.0]) / 6.0
+    time of an unrolled step, at the same run time). Each stage's acceleration
+    leaves packed (``_pack``) and is unpacked, and added to the weighted sum,
+    by the next stage."""
+    dtype = jnp.result_type(*q)
+    c = jnp.array([0.0, 0.5, 0.5, 1.0], dtype)
+    b = jnp.array([1.0, 2.0, 2.0, 1.0], dtype) / 6
+    b_prev = jnp.array([0.0, 1.0, 2.0, 2.0], dtype) / 6  # weight of the previous stage's acceleration
+    n = len(q)
 
     def stage(carry, coef):
-        (kq, kqd), (aq, aqd) = carry
-        ci, bi = coef
+        (kq, kqd_packed), (aq, aqd) = carry
+        ci, bi, bp = coef
+        kqd = _unpack(kqd_packed, n)
+        aqd = _axpy(aqd, bp, kqd)
         qi, qdi = _axpy(q, ci * dt, kq), _axpy(qd, ci * dt, kqd)
-        k = (qdi, system.accel(t + ci * dt, qi, qdi))
-        return (k, (_axpy(aq, bi, k[0]), _axpy(aqd, bi, k[1]))), None
+        acc = _pack(system.accel(t + ci * dt, qi, qdi))
+        return ((qdi, acc), (_axpy(aq, bi, qdi), aqd)), None
 
     zero = tuple(jnp.zeros_like(x) for x in qd)
-    (_, (aq, aqd)), _ = jax.lax.scan(stage, ((zero, zero), (zero, zero)), (c, b))
+    ((_, acc), (aq, aqd)), _ = jax.lax.scan(stage, ((zero, _pack(zero)), (zero, zero)), (c, b, b_prev))
+    aqd = _axpy(aqd, b[3], _unpack(acc, n))
     return _axpy(q, dt, aq), _axpy(qd, dt, aqd)
 
 
@@ -82,16 +114,19 @@ def _midpoint(system, t, q, qd, dt, iterations: int = 2):
     Starting the iterate at (q, qd) makes the predictor the first pass of the
     same update evaluated at t, so predictor and iterations run as one
     ``lax.scan`` and the dynamics appear once in the compiled program."""
-    fractions = jnp.array([0.0] + [0.5] * iterations)
+    fractions = jnp.array([0.0] + [0.5] * iterations, jnp.result_type(*q))
+    n = len(q)
 
     def one(carry, c):
-        q1, qd1 = carry
+        q1, acc = carry  # the iterate's qd1 = qd + dt * acc, acc packed (``_pack``)
+        qd1 = _axpy(qd, dt, _unpack(acc, n))
         qm = tuple((a + b) / 2 for a, b in zip(q, q1))
         qdm = tuple((a + b) / 2 for a, b in zip(qd, qd1))
-        return (_axpy(q, dt, qdm), _axpy(qd, dt, system.accel(t + c * dt, qm, qdm))), None
+        return (_axpy(q, dt, qdm), _pack(system.accel(t + c * dt, qm, qdm))), None
 
-    (q1, qd1), _ = jax.lax.scan(one, (q, qd), fractions)
-    return q1, qd1
+    zero = tuple(jnp.zeros_like(x) for x in qd)
+    (q1, acc), _ = jax.lax.scan(one, (q, _pack(zero)), fractions)
+    return q1, _axpy(qd, dt, _unpack(acc, n))
 
 
 def _imex_euler(system, t, q, qd, dt):
@@ -133,39 +168,38 @@ def _ars443(system, t, q, qd, dt):
     M, f, K, D = system.parts(t, q, qd)
     n = len(q)
     a = 0.5 * dt
+    dtype = jnp.result_type(*q)
+    tab_e, tab_i, tab_c = (x.astype(dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
     A = [[lie.add(lie.add(M[i][j], lie.mul(a, D[i][j])), lie.mul(a * a, K[i][j])) for j in range(n)]
          for i in range(n)]
     arr = lambda xs: jnp.stack([lie.as_array(x) for x in xs])  # noqa: E731
     elastic = [lie.add(x, y) for x, y in zip(lie.matvec(K, q), lie.matvec(D, qd))]
-    zeros = jnp.zeros((4, n), dtype=jnp.result_type(*q))
+    zeros = jnp.zeros((4, n), dtype)
     # stage slots (4 x n): implicit q' and qd', explicit qd' (q' has no explicit part).
     # Slot 0 of the implicit parts has weight 0 in every stage, so it stays empty.
-    e_v0 = arr(lie.solve_spd(M, [lie.add(fi, e) for fi, e in zip(f, elastic)]))
+    e_v0 = _pack(lie.solve_spd(M, [lie.add(fi, e) for fi, e in zip(f, elastic)]))
     q0, qd0 = jnp.stack(q), jnp.stack(qd)
 
     def solve_stage(i, g_q, g_v, e_v):
-        Yq = q0 + dt * (_ARS443_I[i] @ g_q)
-        Yv = qd0 + dt * (_ARS443_E[i] @ e_v + _ARS443_I[i] @ g_v)
+        Yq = q0 + dt * (tab_i[i] @ g_q)
+        Yv = qd0 + dt * (tab_e[i] @ e_v + tab_i[i] @ g_v)
         m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(lie.matvec(M, tuple(Yv)), lie.matvec(K, tuple(Yq)))]
         v = arr(lie.solve_spd(A, m))
         return Yq + a * v, v, Yv
 
-    # Each stage's acceleration leaves the stage as its own (n,) array and enters
-    # its slot at the next stage. Written into the (4, n) slot array in the stage
-    # that computes it, XLA fused the whole dynamics into that in-place update, whose
-    # lanes lie 4n elements apart: no SIMD across the batch, and at batch 1024 a step
-    # cost 2x an RK4 step. Carried alone, it is a (batch, n) buffer laid out batch-
-    # contiguous: 2.1x the throws/s at batch 1024, about the same at batch 1 (optimised HLO
-    # and timings in the issue 4 notes).
+    # Each stage's acceleration leaves the stage packed (``_pack``) and enters its
+    # slot at the next stage. Written into the (4, n) slot array in the stage that
+    # computes it, XLA fused the whole dynamics into that in-place update, whose lanes
+    # lie 4n elements apart: no SIMD across the batch (optimised HLO in the issue 4 notes).
     def stage(carry, i):
         g_q, g_v, e_v, acc_prev = carry
-        e_v = e_v.at[i].set(acc_prev - g_v[i])
+        e_v = e_v.at[i].set(arr(_unpack(acc_prev, n)) - g_v[i])
         qi, v, Yv = solve_stage(i, g_q, g_v, e_v)
-        acc = jnp.stack(system.accel(t + _ARS443_C[i] * dt, tuple(qi), tuple(v)))
+        acc = _pack(system.accel(t + tab_c[i] * dt, tuple(qi), tuple(v)))
         return (g_q.at[i + 1].set(v), g_v.at[i + 1].set((v - Yv) / a), e_v, acc), None
 
     (g_q, g_v, e_v, acc_last), _ = jax.lax.scan(stage, (zeros, zeros, zeros, e_v0), jnp.arange(3))
-    e_v = e_v.at[3].set(acc_last - g_v[3])
+    e_v = e_v.at[3].set(arr(_unpack(acc_last, n)) - g_v[3])
     q1, qd1, _ = solve_stage(3, g_q, g_v, e_v)  # stiffly accurate: the last stage is the step
     return tuple(q1), tuple(qd1)
 
