@@ -96,7 +96,7 @@ def const(x: float) -> Scalar:
 def as_array(a: Scalar) -> jax.Array:
     """A scalar as a JAX array (structural zeros become 0.0)."""
     if is_zero(a) or isinstance(a, (int, float)):
-        return jnp.asarray(float(a), dtype=jnp.result_type(float))
+        return jnp.asarray(float(a))  # weakly typed: takes the dtype of what it meets
     return a
 
 
@@ -181,35 +181,45 @@ def ad_transpose(x: Vec, y: Vec) -> Vec:
 # ----------------------------------------------------------------------------
 # coefficient functions of u = |w|^2, safe (value and gradient) at u = 0
 
-_U_SMALL = 1e-2  # theta < 0.1: series through u^3 truncates below 1e-13 in fp64
+# Series in u (through u^4; gvs-notes 1.4) and the threshold below which they are
+# used. fp64: theta < 0.1 and terms through u^3 (truncation < 1e-13; the closed
+# forms lose ~1e-10 to cancellation at theta = 0.1). fp32: theta < 1 and terms
+# through u^4 (truncation ~3e-8, at fp32 rounding), where the closed forms would
+# lose whole digits at theta = 0.1.
+_U_SMALL = {jnp.dtype(jnp.float64): 1e-2, jnp.dtype(jnp.float32): 1.0}
+_N_TERMS = {jnp.dtype(jnp.float64): 4, jnp.dtype(jnp.float32): 5}
 
 
 def _safe(u, series, closed):
-    small = u < _U_SMALL
+    """series(u) below the threshold, closed(sqrt(u)) above; gradient-safe at u = 0."""
+    dtype = jnp.result_type(u)
+    if dtype not in _U_SMALL:
+        raise TypeError(f"a {dtype} angle: gvsjax computes in float64 or float32")
+    small = u < _U_SMALL[dtype]
     u_safe = jnp.where(small, 1.0, u)
-    return jnp.where(small, series(u), closed(jnp.sqrt(u_safe)))
+    terms = series[: _N_TERMS[dtype]]
+    poly = terms[-1]
+    for c in reversed(terms[:-1]):  # Horner
+        poly = c + u * poly
+    return jnp.where(small, poly, closed(jnp.sqrt(u_safe)))
 
 
 def _sinc(u):
-    return _safe(u, lambda u: 1 - u / 6 + u**2 / 120 - u**3 / 5040, lambda t: jnp.sin(t) / t)
+    return _safe(u, (1, -1 / 6, 1 / 120, -1 / 5040, 1 / 362880), lambda t: jnp.sin(t) / t)
 
 
 def _a(u):  # (1 - cos t) / t^2
-    return _safe(
-        u, lambda u: 0.5 - u / 24 + u**2 / 720 - u**3 / 40320, lambda t: (1 - jnp.cos(t)) / t**2
-    )
+    return _safe(u, (0.5, -1 / 24, 1 / 720, -1 / 40320, 1 / 3628800), lambda t: (1 - jnp.cos(t)) / t**2)
 
 
 def _b(u):  # (t - sin t) / t^3
-    return _safe(
-        u, lambda u: 1 / 6 - u / 120 + u**2 / 5040 - u**3 / 362880, lambda t: (t - jnp.sin(t)) / t**3
-    )
+    return _safe(u, (1 / 6, -1 / 120, 1 / 5040, -1 / 362880, 1 / 39916800), lambda t: (t - jnp.sin(t)) / t**3)
 
 
 def _f3(u):  # (2 - 2c - t s) / (2 t^4)
     return _safe(
         u,
-        lambda u: 1 / 24 - u / 360 + u**2 / 13440 - u**3 / 907200,
+        (1 / 24, -1 / 360, 1 / 13440, -1 / 907200, 1 / 95800320),
         lambda t: (2 - 2 * jnp.cos(t) - t * jnp.sin(t)) / (2 * t**4),
     )
 
@@ -217,7 +227,7 @@ def _f3(u):  # (2 - 2c - t s) / (2 t^4)
 def _f4(u):  # (2 t - 3 s + t c) / (2 t^5)
     return _safe(
         u,
-        lambda u: 1 / 120 - u / 2520 + u**2 / 120960 - u**3 / 9979200,
+        (1 / 120, -1 / 2520, 1 / 120960, -1 / 9979200, 1 / 1245404160),
         lambda t: (2 * t - 3 * jnp.sin(t) + t * jnp.cos(t)) / (2 * t**5),
     )
 
