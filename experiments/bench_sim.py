@@ -3,8 +3,9 @@
 Each throw: theta(t) = theta_F (t/T)^2, theta_F = 210 deg, a 5.886 N tip force,
 T ~ U[0.5, 3] s, simulated to release t = delta T, delta ~ U[0.85, 1], with a
 fixed number of steps per throw (dt = t_rel / n_steps, so every episode of a
-batch has the same length). Two configurations, measured in the same run:
-the basketball task's default (40 ``ars443`` steps) and its peer, 300 RK4
+batch has the same length). Three configurations, measured in the same run:
+the basketball task's default (40 ``ars443`` steps), the same in float32
+(``simulate(dtype=jnp.float32)``), and its peer, 300 RK4
 steps (the fewest round number RK4 is stable with for a 3 s throw, and the
 task's default before ars443). The accuracy column is the worst release tip
 position error over 256 throws against converged RK4 (3000 steps).
@@ -28,13 +29,16 @@ import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 THETA_F = np.deg2rad(210.0)
 
 
-def make_throws(n_steps: int, integrator: str = "rk4"):
+def make_throws(n_steps: int, integrator: str = "rk4", dtype=jnp.float64):
+    """Batched throws (T, delta) -> (release tip, tip velocity), in float64 whatever ``dtype`` runs."""
     arm = gv.paper_arm(tip_force=5.886)
+    theta_f = float(THETA_F)  # a Python float: a numpy float64 would lift a float32 law to float64
 
     def throw(T, delta):
+        T, delta = T.astype(dtype), delta.astype(dtype)
         traj = gv.simulate(arm, delta * T, n_steps=n_steps, save_every=n_steps, integrator=integrator,
-                           check_stability=False, base_angle=lambda t: THETA_F * (t / T) ** 2)
-        return traj.tip[-1], traj.tip_velocity[-1]
+                           check_stability=False, base_angle=lambda t: theta_f * (t / T) ** 2, dtype=dtype)
+        return traj.tip[-1].astype(jnp.float64), traj.tip_velocity[-1].astype(jnp.float64)
 
     return jax.jit(jax.vmap(throw))
 
@@ -83,11 +87,13 @@ def main() -> None:
     converged = make_throws(3000)(T, d)[0]
     mean_t = float(jnp.mean(T * d))
     results = []
-    for integrator, n_steps in configurations():
-        err = float(jnp.max(jnp.linalg.norm(make_throws(n_steps, integrator)(T, d)[0] - converged, axis=-1)))
+    (default, n_default), peer = configurations()
+    for integrator, n_steps, dtype in ((default, n_default, jnp.float64), (default, n_default, jnp.float32),
+                                       (*peer, jnp.float64)):
+        throws = make_throws(n_steps, integrator, dtype)
+        err = float(jnp.max(jnp.linalg.norm(throws(T, d)[0] - converged, axis=-1)))
         print(f"\n{integrator}, {n_steps} steps per throw (dt <= {3.0 / n_steps * 1e3:.1f} ms), "
-              f"max release-position error vs converged RK4: {err * 1e3:.2e} mm")
-        throws = make_throws(n_steps, integrator)
+              f"{jnp.dtype(dtype).name}, max release-position error vs converged RK4 (float64): {err * 1e3:.2e} mm")
         rows = []
         for batch in [int(b) for b in args.batches.split(",")]:
             compile_s, run_s = timed(throws, *actions(batch), repeats=args.repeats)
@@ -102,10 +108,13 @@ def main() -> None:
             print(f"{r['batch']:>6} {r['throws_per_s']:>10.0f} {r['steps_per_s']:>12.3g} "
                   f"{r['sim_seconds_per_wall_second']:>13.0f} {r['throws_per_s'] / base:>9.1f}x "
                   f"{r['compile_s']:>9.1f}")
-        results.append(dict(integrator=integrator, n_steps=n_steps, release_error_m=err, rows=rows))
-    first, peer = results[0]["rows"], results[-1]["rows"]
+        results.append(dict(integrator=integrator, n_steps=n_steps, dtype=jnp.dtype(dtype).name,
+                            release_error_m=err, rows=rows))
+    first, f32, peer = (r["rows"] for r in results)
     print("\ntask default vs RK4 peer, throws/s ratio: " + ", ".join(
         f"batch {a['batch']}: {a['throws_per_s'] / b['throws_per_s']:.2f}x" for a, b in zip(first, peer)))
+    print("task default in float32 vs float64, throws/s ratio: " + ", ".join(
+        f"batch {a['batch']}: {a['throws_per_s'] / b['throws_per_s']:.2f}x" for a, b in zip(f32, first)))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(dict(configurations=results, load_average=load_average(),
