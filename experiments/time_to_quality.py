@@ -45,7 +45,8 @@ def main(argv=None) -> dict:
     run, overrides = parse_args(["task=basketball"] + rest)
     config = build_config(run["task"], run["preset"], overrides)
     env = make(run["task"])
-    eval_params, train_params = env.default_params(), training_params(env, run["train_targets"])
+    eval_params = env.default_params()  # evaluation simulates in float64 whatever training uses
+    train_params = training_params(env, run["train_targets"], run["sim_dtype"])
     eval_seed = 1_000_003 + config.seed
     state = init(config, env, train_params, jax.random.PRNGKey(config.seed))
     per_call = default_updates_per_call(config, env.episode_length)

@@ -80,6 +80,9 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "train_targets": ("", "training target distribution of a task with several (basketball: action, area "
                           "or mixed; empty: the task's own choice, basketball mixed); evaluation always "
                           "uses the task's default params"),
+    "sim_dtype": ("", "simulator precision in training: float64 or float32 (float32: ~2.7x the throws/s of a "
+                      "batch; issue 4); empty: float64, or the resumed run's. The final evaluation always "
+                      "simulates in float64"),
     "checkpoint_every": (60.0, "seconds of training between checkpoints"),
     "eval_targets": (1000, "targets of the final evaluation (0 skips it)"),
     "eval_seed": (-1, "seed of the final evaluation's targets (-1: 1_000_003 + seed)"),
@@ -96,6 +99,7 @@ _RUN_RANGES: dict[str, tuple[Any, str]] = {
     "eval_targets": (lambda v: v >= 0, "an int >= 0"),
     "eval_seed": (lambda v: v >= -1, "an int >= -1"),
     "updates_per_call": (lambda v: v >= 0, "an int >= 0"),
+    "sim_dtype": (lambda v: v in ("", "float64", "float32"), "float64, float32 or empty (float64)"),
 }
 
 
@@ -152,14 +156,22 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     return run, ppo
 
 
-def training_params(env, targets: str = "") -> Any:
-    """The env params training uses: ``env.train_params(targets)`` if the task has it."""
+def training_params(env, targets: str = "", sim_dtype: str = "") -> Any:
+    """The env params training uses: ``env.train_params(targets)`` if the task has it, simulating
+    in ``sim_dtype`` (empty: float64)."""
     if hasattr(env, "train_params"):
-        return env.train_params(targets)
-    if targets:
+        params = env.train_params(targets)
+    elif targets:
         raise ValueError(f"train_targets={targets!r} is invalid for task={env.name!r}: it has a single "
                          "target distribution (leave train_targets empty)")
-    return env.default_params()
+    else:
+        params = env.default_params()
+    if sim_dtype and sim_dtype != "float64":
+        if not hasattr(params, "sim_dtype"):
+            raise ValueError(f"sim_dtype={sim_dtype!r} is invalid for task={env.name!r}: it simulates in "
+                             "float64 only (leave sim_dtype empty)")
+        params = params.replace(sim_dtype=sim_dtype)
+    return params
 
 
 def task_defaults(task: str) -> dict[str, Any]:
@@ -180,7 +192,7 @@ def config_from_json(d: dict, source: str = "config") -> PPOConfig:
     if not isinstance(d, dict):
         raise ValueError(f"{source} is invalid: expected a JSON object of PPOConfig fields, "
                          f"got {type(d).__name__}")
-    unknown = sorted(set(d) - set(FIELD_DOCS) - {"task", "preset", "train_targets"})
+    unknown = sorted(set(d) - set(FIELD_DOCS) - {"task", "preset", "train_targets", "sim_dtype"})
     if unknown:
         raise ValueError(f"{source} has unknown key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
     d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in FIELD_DOCS}
@@ -199,12 +211,13 @@ def default_updates_per_call(config: PPOConfig, episode_length: int) -> int:
     return max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
 
 
-def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targets: str = ""):
+def _update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targets: str = "",
+               sim_dtype: str = ""):
     # The update never reads the seed (the PRNG key is in TrainState), so runs differing only
     # in seed share one program: a seed sweep in one process compiles once (soak: each new
     # program held ~100 MB of RSS).
     config = config.replace(seed=0)
-    key = (task, config, per_call, targets)
+    key = (task, config, per_call, targets, sim_dtype or "float64")
     if key not in _STEP_CACHE:
         _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
     return _STEP_CACHE[key]
@@ -344,21 +357,27 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
             raise ValueError(f"resume: train_targets={run['train_targets']!r} differs from the checkpoint's "
                              f"{saved_targets!r}; start a new run instead")
         run = {**run, "train_targets": saved_targets}
+        saved_dtype = meta["config"].get("sim_dtype", "") or "float64"
+        if run["sim_dtype"] and run["sim_dtype"] != saved_dtype:
+            raise ValueError(f"resume: sim_dtype={run['sim_dtype']!r} differs from the checkpoint's "
+                             f"{saved_dtype!r}; start a new run instead")
+        run = {**run, "sim_dtype": saved_dtype}
     else:
         config = build_config(task, run["preset"], overrides)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(
         {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
+         "sim_dtype": run["sim_dtype"] or "float64",
          **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
-    env_params = training_params(env, run["train_targets"])
+    env_params = training_params(env, run["train_targets"], run["sim_dtype"])
     state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
     if run["resume"]:
         state = checkpoint.restore_state(state, meta["train_state"])
     total = num_updates(config, env.episode_length)
     per_call = run.get("updates_per_call") or default_updates_per_call(config, env.episode_length)
-    step_fn = _update_fn(task, config, env, env_params, per_call, run["train_targets"])
+    step_fn = _update_fn(task, config, env, env_params, per_call, run["train_targets"], run["sim_dtype"])
     log = MetricsLog(out, int(state.update) if run["resume"] else None)
     setup_s = time.perf_counter() - t0
 
@@ -367,7 +386,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         from tqdm import tqdm
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
-    config_dict = {"task": task, "train_targets": run["train_targets"], **dataclasses.asdict(config)}
+    config_dict = {"task": task, "train_targets": run["train_targets"], "sim_dtype": run["sim_dtype"] or "float64",
+                   **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
     saved_update = int(state.update) if run["resume"] else None
     while int(state.update) < total:

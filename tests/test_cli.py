@@ -104,3 +104,15 @@ def test_training_targets_differ_from_evaluation_only_where_the_task_says_so():
         train.training_params(pickplace, "mixed")
     with pytest.raises(ValueError, match="single target distribution"):
         train.parse_args(["task=pickplace", "train_targets=mixed"])
+
+
+def test_sim_dtype_reaches_the_training_params_only():
+    from gvsjax.tasks import make
+
+    for task in ("basketball", "pickplace"):
+        env = make(task)
+        assert train.training_params(env, "", "float32").sim_dtype == "float32"
+        assert train.training_params(env).sim_dtype == "float64"
+        assert env.default_params().sim_dtype == "float64"  # what evaluation simulates with
+    with pytest.raises(ValueError, match="sim_dtype='float16' is invalid; expected float64, float32"):
+        train.parse_args(["task=basketball", "sim_dtype=float16"])

@@ -99,3 +99,41 @@ def test_float32_throws_compute_in_float32_and_match_float64():
 def test_unsupported_dtype_is_named(dtype):
     with pytest.raises(ValueError, match="dtype"):
         gv.simulate(ARM, 0.1, n_steps=2, dtype=dtype)
+
+
+def test_tasks_with_a_float32_simulator_keep_float64_states_and_reach_the_same_outcome():
+    """Both tasks with ``sim_dtype="float32"`` (what ``gvsjax.train sim_dtype=float32`` trains on): the
+    env's outputs and carried state keep their float64 dtypes (PPO's scans carry them), and the
+    outcome is float64's to within fp32's share of the 1 mm budget."""
+    from gvsjax.tasks import basketball as bb
+    from gvsjax.tasks import make
+    from gvsjax.tasks import pickplace as pp
+
+    key = jax.random.PRNGKey(0)
+    keys = jax.random.split(key, 8)
+    env = make("basketball")
+    p64 = env.default_params()
+    p32 = p64.replace(sim_dtype="float32")
+    actions = jax.random.uniform(key, (8, 2), minval=-1.0, maxval=1.0)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, p64)
+    outs = [jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))(keys, state, actions, p) for p in (p64, p32)]
+    for a, b in zip(jax.tree_util.tree_leaves(outs[0]), jax.tree_util.tree_leaves(outs[1])):
+        assert a.dtype == b.dtype
+    rewards = [np.asarray(o[2]) for o in outs]
+    assert np.max(np.abs(rewards[0] - rewards[1])) < 2e-4  # exp(-2.2 cost), cost within 5e-5 m
+    tip64 = bb.release_state(p64, 1.7, 0.9)[0]
+    tip32 = bb.release_state(p32, 1.7, 0.9)[0]
+    assert tip32.dtype == jnp.float64 and float(jnp.linalg.norm(tip32 - tip64)) < 5e-5
+
+    env = make("pickplace")
+    P = pp.make_params(n_pairs=6, n_test=2, seed=3)
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    ends = []
+    for p in (P, P.replace(sim_dtype="float32")):
+        _, state = jax.vmap(env.reset_to, in_axes=(0, None))(jnp.stack([P.pick, P.place], 1), p)
+        _, s1, _, _, info1 = step(keys[:6], state, P.pick_action, p)
+        _, s2, _, _, info2 = step(keys[:6], s1, P.place_action, p)
+        assert s1.q.dtype == s2.qd.dtype == jnp.float64
+        ends.append((info1["distance"], info2["distance"]))
+    # the table rows are exact in float64 (1e-9 m); float32 ends both steps within 0.05 mm
+    assert np.max(np.asarray(ends[0])) < 1e-9 and np.max(np.asarray(ends[1])) < 5e-5

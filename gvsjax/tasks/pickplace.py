@@ -92,6 +92,7 @@ class PickPlaceParams:
     target_obs: str = struct.field(pytree_node=False, default="polar")
     n_steps: int = struct.field(pytree_node=False, default=60)  # integrator steps per 5 s step
     integrator: str = struct.field(pytree_node=False, default="ars443")  # see gvsjax.integrators
+    sim_dtype: str = struct.field(pytree_node=False, default="float64")  # simulate's dtype (issue 4)
     split: str = struct.field(pytree_node=False, default="train")  # "train", "test" or "all"
     n_test: int = struct.field(pytree_node=False, default=0)  # held-out rows at the table's end
     # target tables, P rows (see module docstring); None in a bare PickPlaceParams(...),
@@ -148,10 +149,14 @@ def run_step(params: PickPlaceParams, q, qd, tension0, theta_final, tension, sav
 
     ``save_every`` defaults to ``n_steps`` (start and end states only).
     """
-    angle, pull = controls(q[0], theta_final, tension0, tension, params.step_time)
-    return gv.simulate(params.arm, params.step_time, n_steps=params.n_steps, base_angle=angle,
+    dtype = params.sim_dtype
+    cast = lambda x: jnp.asarray(x).astype(dtype)  # noqa: E731
+    angle, pull = controls(cast(q[0]), cast(theta_final), cast(tension0), cast(tension), params.step_time)
+    traj = gv.simulate(params.arm, params.step_time, n_steps=params.n_steps, base_angle=angle,
                        tendon_force=pull, q0=q, qd0=qd, save_every=save_every or params.n_steps,
-                       integrator=params.integrator, check_stability=False)
+                       integrator=params.integrator, check_stability=False, dtype=dtype)
+    # back to float64: the env's state and tables stay float64 whatever the simulation ran in
+    return jax.tree_util.tree_map(lambda x: x.astype(float), traj)
 
 
 def episode(params: PickPlaceParams, actions, save_every=None):
@@ -211,11 +216,12 @@ def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
     base = PickPlaceParams(arm=arm if arm is not None else gv.paper_arm(tendon_offset=0.025),
                            n_test=n_test, **overrides)
     table_key = (n_pairs, seed, base.n_steps, base.integrator, base.step_time, base.angle_max, base.tension_max)
+    exact = dataclasses.replace(base, sim_dtype="float64")  # the tables' targets: float64 whatever sim_dtype is
     if arm is not None:
-        tables = _tables(base, n_pairs, seed)
+        tables = _tables(exact, n_pairs, seed)
     else:
         if table_key not in _CACHE:
-            _CACHE[table_key] = _tables(base, n_pairs, seed)
+            _CACHE[table_key] = _tables(exact, n_pairs, seed)
         tables = _CACHE[table_key]
     radii = np.hypot(*np.concatenate([tables["pick"], tables["place"]]).T)
     band = overrides.get("radius_range", (float(radii.min()), float(radii.max())))
