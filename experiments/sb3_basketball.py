@@ -52,6 +52,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="paper: the paper's layers 128-32-16 with ReLU (SB3 has no shared trunk, so "
                         "actor and critic get one each); sb3: SB3's default MlpPolicy (64-64 tanh)")
     p.add_argument("--n-targets", type=int, default=1000, help="held-out evaluation targets")
+    p.add_argument("--eval-every", type=float, default=0.0,
+                   help="also evaluate every this many seconds of training (0: only at the end); the "
+                        "evaluations' own time is off the training clock and off --max-seconds")
     p.add_argument("--eval-seed", type=int, default=1_000_003, help="evaluation key seed")
     p.add_argument("--out", default="runs/sb3_basketball/result.json", help="results JSON path")
     p.add_argument("--vector", action="store_true",
@@ -153,6 +156,33 @@ def _wall_clock_limit(seconds: float):
     return WallClockLimit()
 
 
+def _periodic_eval(every_s: float, evaluate, curve: list, limit_s: float):
+    """An SB3 callback that evaluates the deterministic policy every ``every_s`` seconds of training
+    and ends ``learn`` after ``limit_s``; the evaluations' own time is kept off the training clock
+    (as in time_to_quality.py)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class PeriodicEval(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.clock, self.last, self.next = 0.0, time.perf_counter(), every_s
+
+        def _on_step(self) -> bool:
+            now = time.perf_counter()
+            self.clock += now - self.last
+            if self.clock >= self.next:
+                m = metrics(evaluate()["miss"])
+                curve.append({"train_s": self.clock, "timesteps": int(self.num_timesteps),
+                              **{k: float(v) for k, v in m.items()}})
+                print(f"{self.clock:7.0f} s  <10cm {m['success_rate_10cm']:.3f}  <1cm {m['within_1cm']:.3f}",
+                      flush=True)
+                while self.next <= self.clock:  # one evaluation even if a step spanned several periods
+                    self.next += every_s
+            self.last = time.perf_counter()
+            return self.clock < limit_s
+
+    return PeriodicEval()
+
+
 def main(argv=None) -> dict:
     args = parse_args(argv)
     from stable_baselines3 import PPO
@@ -171,14 +201,19 @@ def main(argv=None) -> dict:
         policy_kwargs.update(net_arch=dict(pi=[128, 32, 16], vf=[128, 32, 16]), activation_fn=torch.nn.ReLU)
     model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
                 learning_rate=args.learning_rate, seed=args.seed, verbose=0, policy_kwargs=policy_kwargs)
+    task = venv.venv if args.vector else venv.envs[0].unwrapped
+    evaluate = lambda: evaluate_policy(lambda o: model.predict(o, deterministic=True)[0],  # noqa: E731
+                                       task.task, task.env_params, args.n_targets, args.eval_seed)
+    curve: list = []
+    callbacks = ([_periodic_eval(args.eval_every, evaluate, curve, args.max_seconds)] if args.eval_every > 0
+                 else [_wall_clock_limit(args.max_seconds)])
     t1 = time.perf_counter()
-    model.learn(total_timesteps=args.timesteps, callback=_wall_clock_limit(args.max_seconds))
+    model.learn(total_timesteps=args.timesteps, callback=callbacks)
     t2 = time.perf_counter()
     if args.vector:
-        episodes, task = len(venv.episode_returns), venv.venv
+        episodes = len(venv.episode_returns)
     else:
         episodes = sum(len(m.get_episode_rewards()) for m in venv.envs)
-        task = venv.envs[0].unwrapped
     r = evaluate_policy(lambda o: model.predict(o, deterministic=True)[0], task.task,
                         task.env_params, args.n_targets, args.eval_seed)
     t3 = time.perf_counter()
@@ -188,7 +223,8 @@ def main(argv=None) -> dict:
               "episodes": int(episodes), "n_envs": args.n_envs, "n_steps": args.n_steps,
               "batch_size": args.batch_size, "learning_rate": args.learning_rate,
               "log_std_init": args.log_std_init, "net": args.net, "max_seconds": args.max_seconds,
-              "setup_s": t1 - t0, "train_s": t2 - t1, "eval_s": t3 - t2, **metrics(r["miss"])}
+              "setup_s": t1 - t0, "train_s": t2 - t1, "eval_s": t3 - t2, **metrics(r["miss"]),
+              "curve": curve}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))

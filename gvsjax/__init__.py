@@ -39,8 +39,9 @@ def _warn_if_backend_started() -> None:
 
 _warn_if_backend_started()
 
-# All physics runs in float64 (gvs-notes 1.4): the throw's release state is
-# sensitive at the 1e-6 level and the Magnus coefficients lose digits in fp32.
+# Physics runs in float64 by default (gvs-notes 1.4): the throw's release state is
+# sensitive at the 1e-6 level. ``simulate(dtype=jnp.float32)`` opts in to float32
+# (its coefficient series switch per 1.4) for batched throughput.
 jax.config.update("jax_enable_x64", True)
 
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402

@@ -177,11 +177,11 @@ def simulate(
     (see ``gvsjax.integrators``). save_every: keep every k-th state.
 
     dtype: jnp.float64 (default) or jnp.float32, the precision of the whole
-    computation. float32 runs about 2.5x the throws/s of a batch on a CPU
+    computation. float32 runs 2.5-2.7x the throws/s of a batch on a CPU
     (twice the SIMD lanes); at the basketball task's 40 ars443 steps its
-    release error vs a converged float64 run is the same 0.4-0.6 mm as
-    float64's (tests/test_precision.py, issue 4 notes). Fine steps (dt below
-    ~1e-4 s) or long horizons accumulate fp32 rounding: check against float64.
+    releases are within 0.05 mm of float64's, so 0.37 mm from a converged
+    run like float64's (tests/test_precision.py, issue 4 notes). Fine steps
+    or long horizons accumulate fp32 rounding: check against float64.
 
     The compiled program is cached per robot structure, step count and
     control functions: calling again with new numbers does not recompile.

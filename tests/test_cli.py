@@ -116,3 +116,8 @@ def test_sim_dtype_reaches_the_training_params_only():
         assert env.default_params().sim_dtype == "float64"  # what evaluation simulates with
     with pytest.raises(ValueError, match="sim_dtype='float16' is invalid; expected float64, float32"):
         train.parse_args(["task=basketball", "sim_dtype=float16"])
+    from gvsjax.tasks import basketball, pickplace
+
+    for module in (basketball, pickplace):
+        with pytest.raises(ValueError, match="sim_dtype='float16' is invalid; choose 'float64' or 'float32'"):
+            module.make_params(sim_dtype="float16")

@@ -360,6 +360,8 @@ def make_params(n_grid_T: int = 128, n_grid_delta: int = 32, cell: float = 0.05,
     if sampling not in ("action", "area", "mixed"):
         raise ValueError(f"target_sampling={sampling!r} is invalid; choose 'action', 'area' "
                          "or 'mixed'")
+    if overrides.get("sim_dtype", "float64") not in ("float64", "float32"):
+        raise ValueError(f"sim_dtype={overrides['sim_dtype']!r} is invalid; choose 'float64' or 'float32'")
     arm = overrides.pop("arm", None)
     base = BasketballParams(arm=arm if arm is not None else gv.paper_arm(tip_force=BALL_WEIGHT),
                             **overrides)

@@ -212,6 +212,8 @@ def make_params(n_pairs: int = 4096, n_test: int = 1024, seed: int = 0,
                          f"{sorted(PickPlaceParams.__dataclass_fields__)}")
     if not 0 < n_test < n_pairs:
         raise ValueError(f"n_test={n_test} must be in (0, n_pairs={n_pairs})")
+    if overrides.get("sim_dtype", "float64") not in ("float64", "float32"):
+        raise ValueError(f"sim_dtype={overrides['sim_dtype']!r} is invalid; choose 'float64' or 'float32'")
     arm = overrides.pop("arm", None)
     base = PickPlaceParams(arm=arm if arm is not None else gv.paper_arm(tendon_offset=0.025),
                            n_test=n_test, **overrides)
