@@ -364,11 +364,11 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         run = {**run, "sim_dtype": saved_dtype}
     else:
         config = build_config(task, run["preset"], overrides)
+        run = {**run, "sim_dtype": run["sim_dtype"] or "float64"}
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(
         {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
-         "sim_dtype": run["sim_dtype"] or "float64",
-         **dataclasses.asdict(config)}, indent=2))
+         "sim_dtype": run["sim_dtype"], **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
     env_params = training_params(env, run["train_targets"], run["sim_dtype"])
@@ -386,7 +386,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         from tqdm import tqdm
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
-    config_dict = {"task": task, "train_targets": run["train_targets"], "sim_dtype": run["sim_dtype"] or "float64",
+    config_dict = {"task": task, "train_targets": run["train_targets"], "sim_dtype": run["sim_dtype"],
                    **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
     saved_update = int(state.update) if run["resume"] else None
