@@ -43,7 +43,7 @@ def test_tiny_run_resume_and_evaluate(tmp_path, capsys):
                  "eval_throws.csv", "learning_curve.png", "error_histogram.png", "throw.png"]:
         assert (out / name).is_file(), name
     saved = json.loads((out / "config.json").read_text())
-    assert saved["num_envs"] == 16 and saved["train_targets"] == ""
+    assert saved["num_envs"] == 16 and saved["train_targets"] == "" and saved["sim_dtype"] == "float64"
     with open(out / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 4 and rows[-1]["episodes"] == "64"
@@ -63,6 +63,8 @@ def test_tiny_run_resume_and_evaluate(tmp_path, capsys):
     with pytest.raises(ValueError, match="train_targets='area' differs"):  # it shaped the saved run
         train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True,
                      "train_targets": "area"}, {})
+    with pytest.raises(ValueError, match="sim_dtype='float32' differs from the checkpoint's 'float64'"):
+        train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True, "sim_dtype": "float32"}, {})
     with open(out / "metrics.csv") as f:
         updates = [int(r["update"]) for r in csv.DictReader(f)]
     assert updates == list(range(6))
