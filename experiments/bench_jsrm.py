@@ -65,6 +65,7 @@ import numpy as np
 from bench_sim import load_average, timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
+from gvsjax.integrators import _pack, _unpack
 
 THETA_F = math.radians(210.0)
 BALL = 5.886
@@ -108,8 +109,8 @@ def rk4_packed(accel, q0, qd0, t_end, n_steps):
     w = jnp.array([1.0, 2.0, 2.0, 1.0]) / 6.0
     w_prev = jnp.array([0.0, 1.0, 2.0, 2.0]) / 6.0
     n = q0.shape[0]
-    pack = lambda a: jax.lax.complex(a[0::2], jnp.concatenate([a[1::2], jnp.zeros(n % 2)]))  # noqa: E731
-    unpack = lambda z: jnp.stack([jnp.real(z), jnp.imag(z)], axis=-1).reshape(-1)[:n]  # noqa: E731
+    pack = lambda a: _pack([a[i] for i in range(n)])  # noqa: E731
+    unpack = lambda z: jnp.stack(_unpack(z, n))  # noqa: E731
 
     def step(i, state):
         q, qd = state
