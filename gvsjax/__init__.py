@@ -39,9 +39,9 @@ def _warn_if_backend_started() -> None:
 
 _warn_if_backend_started()
 
-# Physics runs in float64 by default (gvs-notes 1.4): the throw's release state is
-# sensitive at the 1e-6 level. ``simulate(dtype=jnp.float32)`` opts in to float32
-# (its coefficient series switch per 1.4) for batched throughput.
+# Physics runs in float64 by default: a throw's release state is sensitive at the
+# 1e-6 level. ``simulate(dtype=jnp.float32)`` opts in to float32 for batched
+# throughput (docs/physics.md, "Precision").
 jax.config.update("jax_enable_x64", True)
 
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
@@ -58,7 +58,9 @@ from gvsjax.model import (  # noqa: E402
     Tendon,
 )
 from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
-from gvsjax.simulate import Trajectory, simulate, stable_step_estimate  # noqa: E402
+from gvsjax.simulation import simulate  # noqa: E402
+from gvsjax.stability import stable_step_estimate  # noqa: E402
+from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "RigidLink", "Robot", "SoftLink", "StrainBasis",

@@ -9,8 +9,9 @@
 
     envs = gym.make_vec("gvsjax/Basketball-v0", num_envs=256)  # one jitted, vmapped call per step
 
-Registered ids: ``gvsjax/Basketball-v0`` (``tasks.make("basketball")``) and
-``gvsjax/PickPlace-v0`` (``tasks.make("pickplace")``). Keyword arguments:
+Every registered task gets the id ``gvsjax/<ClassName>-v0`` (``gym_id``):
+``gvsjax/Basketball-v0``, ``gvsjax/PickPlace-v0``, ...; a task registered
+after this import is added by ``register_all()``. Keyword arguments:
 ``env_params`` (the task's params pytree; default ``env.default_params()``,
 e.g. ``pickplace.make_params(split="test")`` for held-out targets) and
 ``render_mode`` (``None`` or ``"rgb_array"``).
@@ -52,25 +53,20 @@ from gymnasium.vector.utils import batch_space
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import sharding
-from gvsjax.tasks import make
-
-IDS = {"gvsjax/Basketball-v0": "basketball", "gvsjax/PickPlace-v0": "pickplace"}
-
-# Observation bounds per task (None: unbounded). Basketball: the target scaled by the
-# window. Pick-and-place: theta/pi, q1, q2, qd (3), target angle/pi, radial offset, step.
-_INF = np.inf
-_OBS_BOUNDS = {
-    "basketball": ([-1.0, -1.0], [1.0, 1.0]),
-    "pickplace": ([-1.0, -_INF, -_INF, -_INF, -_INF, -_INF, -1.0, -_INF, 0.0],
-                  [1.0, _INF, _INF, _INF, _INF, _INF, 1.0, _INF, 1.0]),
-}
+from gvsjax.tasks import DEFAULT_TASK, Environment, make, registered
 
 
-def _spaces(env) -> tuple[spaces.Box, spaces.Box]:
-    low, high = _OBS_BOUNDS.get(env.name, ([-_INF] * env.obs_size, [_INF] * env.obs_size))
-    obs = spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
-    act = spaces.Box(-1.0, 1.0, (env.action_size,), dtype=np.float32)
-    return obs, act
+def gym_id(task: str) -> str:
+    """The Gymnasium id of a registered task: ``gvsjax/<its class name>-v0``."""
+    return f"gvsjax/{type(make(task)).__name__}-v0"
+
+
+def _box(box) -> spaces.Box:
+    return spaces.Box(np.asarray(box.low, np.float32), np.asarray(box.high, np.float32), dtype=np.float32)
+
+
+def _spaces(env: Environment, params) -> tuple[spaces.Box, spaces.Box]:
+    return _box(env.observation_space(params)), _box(env.action_space(params))
 
 
 def _to_obs(obs, space: spaces.Box) -> np.ndarray:
@@ -176,12 +172,12 @@ class GvsjaxEnv(gym.Env):
     observation_space: spaces.Box
     action_space: spaces.Box
 
-    def __init__(self, task: str = "basketball", env_params=None, render_mode: str | None = None):
+    def __init__(self, task: str = DEFAULT_TASK, env_params=None, render_mode: str | None = None):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is invalid; choose None or 'rgb_array'")
         self.task = make(task)
         self.env_params = self.task.default_params() if env_params is None else env_params
-        self.observation_space, self.action_space = _spaces(self.task)
+        self.observation_space, self.action_space = _spaces(self.task, self.env_params)
         self.render_mode = render_mode
         self._reset, self._step = _single_fns(self.task)
         self._key: jax.Array | None = None
@@ -216,46 +212,10 @@ class GvsjaxEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        return _render(self.task, self.env_params, self._state, self._last)
-
-
-def _render(task, params, state, last) -> np.ndarray:
-    """An RGB image (H, W, 3) uint8: basketball: the target and the last throw's
-    flight from release; pickplace: the arm's backbone and both targets."""
-    # a figure on its own Agg canvas: headless, and neither pyplot's figure list nor
-    # the user's matplotlib backend is touched
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
-
-    fig = Figure(figsize=(4, 4), dpi=80)
-    canvas = FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    if task.name == "basketball":
-        from gvsjax.tasks import basketball as bb
-
-        x0, x1, y0, y1 = params.window
-        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ls=":", color="0.6"))
-        ax.plot(*np.asarray(state.target), "rx", ms=10, label="target")
-        if last is not None:
-            if (task.name, "release") not in _COMPILED:
-                _COMPILED[task.name, "release"] = jax.jit(
-                    lambda p, a: bb.release_state(p, *bb.action_to_physical(a, p)))
-            p0, v0 = _COMPILED[task.name, "release"](params, jnp.asarray(last[1]))
-            tau = jnp.linspace(0.0, bb.floor_time(p0, v0, params.g, params.y_floor), 100)
-            ax.plot(*np.asarray(bb.flight_point(p0, v0, tau, params.g)).T, "b-", label="ball")
-        ax.plot([0], [0], "ko")
-        ax.set(xlim=(x0 - 0.5, 2.0), ylim=(y0 - 0.5, y1 + 0.5))
-    else:
-        pts = np.asarray(gvsjax.backbone(params.arm, state.q))
-        ax.plot(pts[:, 0], pts[:, 1], "k-", lw=3, label="arm")
-        targets = np.asarray(state.targets)
-        ax.plot(targets[:, 0], targets[:, 1], "rx", ms=10, label="targets")
-        ax.set(xlim=(-1.2, 1.2), ylim=(-1.2, 1.2))
-    ax.set_aspect("equal")
-    ax.legend(loc="upper right", fontsize=7)
-    canvas.draw()
-    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        image = self.task.render(self.env_params, self._state, None if self._last is None else self._last[1])
+        if image is None:
+            raise NotImplementedError(f"task={self.task.name!r} does not render")
+        return image
 
 
 # ----------------------------------------------------------------------------- vector env
@@ -276,7 +236,7 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
     single_observation_space: spaces.Box
     single_action_space: spaces.Box
 
-    def __init__(self, num_envs: int = 1, task: str = "basketball", env_params=None,
+    def __init__(self, num_envs: int = 1, task: str = DEFAULT_TASK, env_params=None,
                  render_mode: str | None = None):
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs={num_envs!r} is invalid; expected an integer >= 1")
@@ -285,7 +245,7 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
         self.task = make(task)
         self.env_params = self.task.default_params() if env_params is None else env_params
         self.num_envs = int(num_envs)
-        self.single_observation_space, self.single_action_space = _spaces(self.task)
+        self.single_observation_space, self.single_action_space = _spaces(self.task, self.env_params)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.render_mode = None
@@ -324,11 +284,16 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
 # ----------------------------------------------------------------------------- registration
 
 
-def _register() -> None:
-    for env_id, task in IDS.items():
+def register_all() -> list[str]:
+    """Register every task of ``gvsjax.tasks`` with Gymnasium; returns their ids."""
+    ids = []
+    for task in registered():
+        env_id = gym_id(task)
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point="gvsjax.gym:GvsjaxEnv",
                          vector_entry_point="gvsjax.gym:GvsjaxVectorEnv", kwargs={"task": task})
+        ids.append(env_id)
+    return ids
 
 
-_register()
+register_all()

@@ -1,7 +1,18 @@
-"""PPO for gvsjax tasks: ``config`` (hyperparameters), ``networks`` (actor-critics),
-``losses`` (GAE and the clipped objective), ``train`` (pure, jittable training)."""
+"""PPO for gvsjax tasks: ``config`` (hyperparameters, presets), ``networks`` (actor-critics),
+``losses`` (GAE and the clipped objective), ``train`` (pure, jittable training),
+``checkpoint`` (atomic checkpoints, ``load_policy``)."""
 
-from gvsjax.ppo.config import FIELD_DOCS, MATLAB_LIKE, PPOConfig, describe, from_overrides
+from gvsjax.ppo.checkpoint import CheckpointError, load_policy, make_policy
+from gvsjax.ppo.config import (
+    FIELD_DOCS,
+    MATLAB_LIKE,
+    PRESETS,
+    PPOConfig,
+    build_config,
+    config_from_json,
+    describe,
+    from_overrides,
+)
 from gvsjax.ppo.losses import (
     Batch,
     clipped_gaussian_log_prob,
@@ -12,8 +23,8 @@ from gvsjax.ppo.losses import (
 )
 from gvsjax.ppo.networks import SeparateActorCritic, SharedActorCritic, make_network
 from gvsjax.ppo.train import (
+    Rollout,
     TrainState,
-    Trajectory,
     collect,
     finetune_start,
     init,
@@ -26,9 +37,11 @@ from gvsjax.ppo.train import (
 )
 
 __all__ = [
-    "FIELD_DOCS", "MATLAB_LIKE", "PPOConfig", "describe", "from_overrides",
+    "CheckpointError", "load_policy", "make_policy",
+    "FIELD_DOCS", "MATLAB_LIKE", "PRESETS", "PPOConfig", "build_config", "config_from_json", "describe",
+    "from_overrides",
     "Batch", "clipped_gaussian_log_prob", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
     "SeparateActorCritic", "SharedActorCritic", "make_network",
-    "TrainState", "Trajectory", "collect", "finetune_start", "init", "make_train",
+    "TrainState", "Rollout", "collect", "finetune_start", "init", "make_train",
     "make_update", "num_updates", "phase_hyperparams", "policy_action", "update",
 ]

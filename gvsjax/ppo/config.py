@@ -9,7 +9,8 @@ Defaults: the paper's two-phase schedule (phase 1: lr 1e-4, clip 0.1; phase 2,
 "fine-tuning": lr 1e-5, clip 0.02) on top of otherwise modern PPO settings
 (PureJaxRL/CleanRL: advantage normalisation, grad-norm clipping, orthogonal
 init, state-independent log-std). ``MATLAB_LIKE`` lists the overrides that
-approximate MATLAB's ``rlPPOAgent`` (see /work/shared/design/rl-notes.md).
+approximate MATLAB's ``rlPPOAgent`` as the paper used it. ``PRESETS`` are named
+override sets for the command line; ``config_from_json`` reads a saved config back.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import typing
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
+
+from gvsjax import keyvalue
 
 
 def _f(default: Any, help: str) -> Any:
@@ -114,8 +117,8 @@ class PPOConfig:
 
 FIELD_DOCS: dict[str, str] = {f.name: f.metadata["help"] for f in dataclasses.fields(PPOConfig)}
 
-# Overrides approximating MATLAB rlPPOAgentOptions as used by the paper (some
-# values only believed, see rl-notes.md); use as ``PPOConfig().replace(**MATLAB_LIKE)``.
+# Overrides approximating MATLAB rlPPOAgentOptions as the paper used them (its toolbox
+# defaults where the paper is silent); use as ``PPOConfig().replace(**MATLAB_LIKE)``.
 MATLAB_LIKE: dict[str, Any] = dict(
     update_epochs=3,
     normalize_advantages=False,
@@ -201,20 +204,9 @@ def parse_value(name: str, text: str) -> Any:
     typ = typing.get_type_hints(PPOConfig)[name]
     text = text.strip()
     try:
-        if typ is bool:
-            lowered = text.lower()
-            if lowered in ("1", "true", "yes", "on"):
-                return True
-            if lowered in ("0", "false", "no", "off"):
-                return False
-            raise ValueError
-        if typ is int:
-            return _parse_int(text)
-        if typ is float:
-            return float(text)
-        if typ is str:
-            return text
-        return tuple(_parse_int(t) for t in text.strip("()[]").split(",") if t.strip())
+        if typ in (bool, int, float, str):
+            return keyvalue.typed(typ())(text)
+        return tuple(keyvalue.parse_int(t) for t in text.strip("()[]").split(",") if t.strip())
     except ValueError:
         raise ValueError(
             f"{name}={text!r} is invalid; expected {_type_name(typ)}"
@@ -222,14 +214,9 @@ def parse_value(name: str, text: str) -> Any:
         ) from None
 
 
-def _parse_int(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        as_float = float(text)  # accept "1e5"
-        if not as_float.is_integer():
-            raise
-        return int(as_float)
+def field_parsers() -> dict[str, Any]:
+    """``{field: text -> value}`` for ``keyvalue.parse``."""
+    return {name: (lambda text, name=name: parse_value(name, text)) for name in FIELD_DOCS}
 
 
 def from_overrides(base: PPOConfig, overrides: Iterable[str]) -> PPOConfig:
@@ -237,16 +224,44 @@ def from_overrides(base: PPOConfig, overrides: Iterable[str]) -> PPOConfig:
 
     Example: ``from_overrides(PPOConfig(), ["num_envs=32", "shared_hidden=64,16"])``.
     """
-    parsed: dict[str, Any] = {}
-    for item in overrides:
-        key, sep, text = item.partition("=")
-        key = key.strip()
-        if not sep:
-            raise ValueError(f"override {item!r} is not of the form key=value")
-        if key not in FIELD_DOCS:
-            raise ValueError(f"unknown PPOConfig key {key!r}; valid keys: {sorted(FIELD_DOCS)}")
-        parsed[key] = parse_value(key, text)
-    return base.replace(**parsed)
+    return base.replace(**keyvalue.parse(overrides, field_parsers()))
+
+
+# Named override sets applied before a command line's own overrides.
+PRESETS: dict[str, dict[str, Any]] = {
+    "none": {},
+    # the paper's two phases: lr 1e-4 / clip 0.1, then fine-tuning at 1e-5 / 0.02
+    "paper": dict(learning_rate=1e-4, clip_eps=0.1, finetune_learning_rate=1e-5,
+                  finetune_clip_eps=0.02, finetune_fraction=0.3, anneal_lr=False),
+    "matlab": {**MATLAB_LIKE, "learning_rate": 1e-4, "clip_eps": 0.1},
+}
+
+
+def build_config(task_defaults: dict[str, Any], preset: str, overrides: dict[str, Any]) -> PPOConfig:
+    """A task's defaults, then the preset, then the user's overrides (validated)."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset={preset!r} is unknown; choose one of {sorted(PRESETS)}")
+    return PPOConfig().replace(**{**task_defaults, **PRESETS[preset], **overrides})
+
+
+# keys a run's saved config holds beside the PPOConfig fields
+RUN_KEYS = ("task", "preset", "train_targets", "sim_dtype")
+
+
+def config_from_json(d: dict, source: str = "config") -> PPOConfig:
+    """PPOConfig from a saved dict (the ``RUN_KEYS`` are ignored; other unknown keys and
+    invalid values raise ValueError naming ``source``)."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{source} is invalid: expected a JSON object of PPOConfig fields, "
+                         f"got {type(d).__name__}")
+    unknown = sorted(set(d) - set(FIELD_DOCS) - set(RUN_KEYS))
+    if unknown:
+        raise ValueError(f"{source} has unknown key(s) {unknown}; valid keys: {sorted(FIELD_DOCS)}")
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in FIELD_DOCS}
+    try:
+        return PPOConfig(**d)
+    except ValueError as e:
+        raise ValueError(f"{source} is invalid: {e}") from None
 
 
 def describe(config: PPOConfig | None = None) -> str:

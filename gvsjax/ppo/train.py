@@ -61,7 +61,7 @@ class TrainState:
 
 
 @struct.dataclass
-class Trajectory:
+class Rollout:
     """A rollout, time-major ``(T, N, ...)``."""
 
     obs: jax.Array  # (T, N, obs_size) observation the action was taken from
@@ -178,7 +178,7 @@ def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainSta
 
 def collect(
     config: PPOConfig, env, env_params: PyTree, state: TrainState
-) -> tuple[TrainState, Trajectory]:
+) -> tuple[TrainState, Rollout]:
     """Roll the stochastic policy for ``num_steps`` steps in every env (auto-reset).
 
     A step with ``info["valid"] == False`` is treated as terminal with reward 0
@@ -210,7 +210,7 @@ def collect(
             for k, v in info.items()
             if jnp.issubdtype(v.dtype, jnp.floating) and v.shape == (n,)
         }
-        step = Trajectory(
+        step = Rollout(
             obs=obs,
             action=action,
             log_prob=action_log_prob(config.clipped_log_prob, mean, log_std, action),
@@ -242,7 +242,7 @@ def collect(
     return state, trajectory
 
 
-def episode_metrics(trajectory: Trajectory) -> dict[str, jax.Array]:
+def episode_metrics(trajectory: Rollout) -> dict[str, jax.Array]:
     """Means over episodes that *completed validly* in this rollout (NaN if none).
 
     ``episode_reward`` is the undiscounted return; ``episode_<k>`` is scalar

@@ -1,8 +1,14 @@
-"""Tasks: functional environments (gymnax-style) over the GVS simulator."""
+"""Tasks: functional environments (gymnax style) over the GVS simulator.
 
-from gvsjax.tasks.base import Environment, auto_reset_step, make, register, registered
+A task is one module or folder under ``gvsjax/tasks`` and one line below.
+"""
 
-__all__ = ["Environment", "auto_reset_step", "make", "register", "registered"]
+from gvsjax.tasks.base import Box, Environment, EvalResult, auto_reset_step, make, register, registered
 
-# importing a task module registers it ("basketball", "pickplace")
-from gvsjax.tasks import basketball, pickplace  # noqa: E402,F401
+__all__ = ["DEFAULT_TASK", "Box", "Environment", "EvalResult", "auto_reset_step", "make", "register",
+           "registered"]
+
+DEFAULT_TASK = "basketball"  # what the command line and Gymnasium run when no task is named
+
+register("basketball", "gvsjax.tasks.basketball:Basketball")
+register("pickplace", "gvsjax.tasks.pickplace:PickPlace")

@@ -1,4 +1,4 @@
-"""The functional environment API shared by every task (gymnax style).
+"""The environment base class every task derives from (gymnax style) and the registry.
 
 An environment is a small immutable object whose methods are pure functions:
 
@@ -7,63 +7,194 @@ An environment is a small immutable object whose methods are pure functions:
 
 ``params`` is an immutable pytree of the task's parameters (physics, ranges,
 reward scale); ``state`` is a pytree; both ``vmap`` over a batch of episodes.
+A task subclasses ``Environment``, implements ``default_params``, ``reset`` and
+``step``, and overrides the extras below where its defaults do not fit. The
+command line (``train``, ``evaluate``, ``animate``) and ``gvsjax.gym`` reach a
+task only through this class, so adding a task is its module plus one
+``register`` line in ``gvsjax/tasks/__init__.py``.
 
-Conventions (fixed for all gvsjax tasks):
+Conventions (fixed for all tasks):
 
 * ``step`` returns five values, like gymnax 0.x. ``done`` is a *termination*
-  flag: every gvsjax task has a fixed, known episode length, so an episode
-  never ends by truncation. ``info["truncated"]`` is always present (and
-  always False) so that code written for the 6-value gymnax 1.0 convention can
-  build ``terminated, truncated = done, info["truncated"]`` explicitly.
+  flag: every task has a fixed, known episode length, so an episode never ends
+  by truncation. ``info["truncated"]`` is always present (and False), so code
+  written for the 6-value gymnax 1.0 convention can build
+  ``terminated, truncated = done, info["truncated"]``.
 * Actions live in ``[-1, 1]^action_size``; a task maps them affinely to
   physical quantities and clips out-of-range values.
 * ``info["valid"]`` is False when the physics diverged (NaN/inf, or a state
   beyond the task's documented magnitude bound, see ``bounded``); such a step
   ends the episode and its reward must not be used for learning.
-* Non-finite actions (policy: ``sanitize_action``): an action with any NaN or
-  inf entry is replaced by 0, the centre of the action box, the step is
-  simulated with it and flagged ``info["valid"] = False`` (so it ends the
-  episode and PPO masks it out). Inside ``jit`` nothing can be raised on a
-  value, and a flag keeps a batch of episodes running. A wrong action *shape*
-  is known while tracing and raises ``ValueError`` before anything compiles.
+* A non-finite action (``sanitize_action``) is replaced by 0, the centre of
+  the box, simulated, and flagged ``info["valid"] = False``: inside ``jit``
+  nothing can be raised on a value, and a flag keeps a batch running. A wrong
+  action *shape* is known while tracing and raises ``ValueError``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, Protocol
+import dataclasses
+import importlib
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 PyTree = Any
+Policy = Callable[[jax.Array], jax.Array]  # (batch, obs_size) -> (batch, action_size), jittable
 
 
-class Environment(Protocol):
-    """What a task provides. See the module docstring for the conventions."""
+@dataclasses.dataclass(frozen=True)
+class Box:
+    """A box of real vectors (like ``gymnax.spaces.Box``); infinite bounds allowed."""
 
-    name: str
-    obs_size: int
-    action_size: int
-    episode_length: int  # number of steps after which ``done`` is True
+    low: np.ndarray
+    high: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(np.shape(self.low))
+
+
+@dataclasses.dataclass
+class EvalResult:
+    """What ``Environment.evaluate`` returns.
+
+    ``metrics``: JSON-able summary (written to eval.json); ``rows``: one entry per
+    episode for each column (written to the task's ``rows_file``); ``extra``:
+    whatever the task's ``figures`` need (e.g. the actions taken).
+    """
+
+    metrics: dict[str, Any]
+    rows: dict[str, np.ndarray]
+    extra: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+class Environment:
+    """A task: the functional env API plus the extras the command line uses.
+
+    Subclasses set ``name``, ``obs_size``, ``action_size``, ``episode_length``
+    and implement ``default_params``, ``reset`` and ``step``.
+    """
+
+    name: ClassVar[str]
+    obs_size: ClassVar[int]
+    action_size: ClassVar[int]
+    episode_length: ClassVar[int]  # steps after which ``done`` is True
+    # PPOConfig overrides that suit this task (``python -m gvsjax.train`` applies them first)
+    ppo_defaults: ClassVar[Mapping[str, Any]] = {}
+    # names accepted by ``train_params(variant)``; the CLI key ``train_targets`` picks one
+    train_variants: ClassVar[tuple[str, ...]] = ()
+    rows_file: ClassVar[str] = "eval_episodes.csv"  # per-episode evaluation table
+    # CLI keys of ``animate`` with their defaults (empty: the task has no animation)
+    animation_keys: ClassVar[Mapping[str, Any]] = {}
+
+    # ------------------------------------------------------------------ the functional API
 
     def default_params(self) -> PyTree:
-        """The task's parameters as the paper sets them (an immutable pytree)."""
-        ...
-
-    # Optional: ``train_params(targets: str = "")``, the params training uses when they
-    # differ from ``default_params()`` (e.g. another target distribution); evaluation
-    # always uses ``default_params()``. ``gvsjax.train.training_params`` reads it.
+        """The task's parameters as published (an immutable pytree); evaluation uses them."""
+        raise NotImplementedError
 
     def reset(self, key: jax.Array, params: PyTree) -> tuple[jax.Array, PyTree]:
         """A new episode: ``(obs, state)``."""
-        ...
+        raise NotImplementedError
 
-    def step(
-        self, key: jax.Array, state: PyTree, action: jax.Array, params: PyTree
-    ) -> tuple[jax.Array, PyTree, jax.Array, jax.Array, dict[str, jax.Array]]:
+    def step(self, key: jax.Array, state: PyTree, action: jax.Array,
+             params: PyTree) -> tuple[jax.Array, PyTree, jax.Array, jax.Array, dict[str, jax.Array]]:
         """Apply ``action``: ``(obs, state, reward, done, info)`` (see the module docstring)."""
-        ...
+        raise NotImplementedError
+
+    def observation_space(self, params: PyTree | None = None) -> Box:
+        """Bounds of the observation (default: unbounded)."""
+        inf = np.full(self.obs_size, np.inf)
+        return Box(-inf, inf)
+
+    def action_space(self, params: PyTree | None = None) -> Box:
+        """``[-1, 1]^action_size`` for every task."""
+        one = np.ones(self.action_size)
+        return Box(-one, one)
+
+    # ------------------------------------------------------------------ training
+
+    def train_params(self, variant: str = "") -> PyTree:
+        """The params training uses (default: ``default_params()``); ``variant`` picks
+        one of ``train_variants``, e.g. another target distribution."""
+        if variant:
+            allowed = (f"choose one of {list(self.train_variants)} or leave it empty" if self.train_variants
+                       else "this task has a single training distribution: leave it empty")
+            raise ValueError(f"train_targets={variant!r} is invalid for task={self.name!r}; {allowed}")
+        return self.default_params()
+
+    def with_sim_dtype(self, params: PyTree, sim_dtype: str) -> PyTree:
+        """``params`` simulating in ``sim_dtype`` ("float64" or "float32")."""
+        if sim_dtype in ("", "float64") and not hasattr(params, "sim_dtype"):
+            return params
+        if not hasattr(params, "sim_dtype"):
+            raise ValueError(f"sim_dtype={sim_dtype!r} is invalid for task={self.name!r}: it simulates in "
+                             "float64 only (leave sim_dtype empty)")
+        return params.replace(sim_dtype=sim_dtype or "float64")
+
+    # ------------------------------------------------------------------ evaluation
+
+    def evaluate(self, params: PyTree, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+        """Run ``n_episodes`` episodes with ``policy`` from ``reset`` keys of ``seed``.
+
+        The default reports the return (sum of rewards until ``done``) and the
+        share of valid episodes; tasks override it with their own metrics.
+        """
+        ret, valid = _rollout_returns(self, params, policy, n_episodes, seed)
+        ret = np.where(valid, ret, np.nan)
+        metrics = {"n_episodes": int(n_episodes), "valid_fraction": float(np.mean(valid)),
+                   "mean_return": float(np.nanmean(ret)) if valid.any() else float("nan"),
+                   "median_return": float(np.nanmedian(ret)) if valid.any() else float("nan")}
+        return EvalResult(metrics=metrics, rows={"return": ret, "valid": valid})
+
+    def summary(self, metrics: Mapping[str, Any]) -> str:
+        """One or a few lines describing an evaluation's metrics."""
+        shown = {k: v for k, v in metrics.items() if k not in ("task", "checkpoint")}
+        return "eval: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in shown.items())
+
+    def figures(self, params: PyTree, result: EvalResult, out: Path) -> list[Path]:
+        """Figures of an evaluation written into ``out`` (default: none)."""
+        return []
+
+    # ------------------------------------------------------------------ drawing
+
+    def render(self, params: PyTree, state: PyTree, last_action: np.ndarray | None) -> np.ndarray | None:
+        """An RGB image (H, W, 3) uint8 of ``state`` (None: the task does not draw)."""
+        return None
+
+    def animate(self, path: Path, **keys: Any) -> Path:
+        """Write a GIF to ``path`` from the ``animation_keys`` values."""
+        raise ValueError(f"task={self.name!r} has no animation")
+
+
+def _rollout_returns(env: Environment, params, policy: Policy, n: int, seed: int):
+    keys = jax.random.split(jax.random.PRNGKey(seed), n)
+
+    @jax.jit
+    def run(keys):
+        obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+
+        def one(carry, t):
+            obs, state, ret, alive, valid = carry
+            step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(keys)
+            obs, state, reward, done, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+                step_keys, state, policy(obs), params)
+            ok = jnp.asarray(info.get("valid", True), bool)
+            ret = ret + jnp.where(alive, reward, 0.0)
+            valid = valid & (ok | ~alive)
+            return (obs, state, ret, alive & ~done & ok, valid), None
+
+        init = (obs, state, jnp.zeros(n), jnp.ones(n, bool), jnp.ones(n, bool))
+        (_, _, ret, _, valid), _ = jax.lax.scan(one, init, jnp.arange(env.episode_length))
+        return ret, valid
+
+    ret, valid = run(keys)
+    return np.asarray(ret, float), np.asarray(valid, bool)
 
 
 def sanitize_action(action: jax.Array, size: int | None = None) -> tuple[jax.Array, jax.Array]:
@@ -105,19 +236,33 @@ def auto_reset_step(env: Environment) -> Callable:
     return step
 
 
-_REGISTRY: dict[str, Callable[[], Environment]] = {}
+# ----------------------------------------------------------------------------- registry
+
+_REGISTRY: dict[str, Callable[[], Environment] | str] = {}
 
 
-def register(name: str, factory: Callable[[], Environment]) -> None:
-    """Make ``make(name)`` return ``factory()``."""
+def register(name: str, factory: Callable[[], Environment] | str) -> None:
+    """Make ``make(name)`` return ``factory()``.
+
+    ``factory`` is a callable (e.g. the class) or ``"module:attr"``, imported on
+    first use so that listing tasks does not import (or build) every one.
+    """
     _REGISTRY[name] = factory
 
 
 def make(name: str) -> Environment:
     """The environment registered under ``name``."""
     if name not in _REGISTRY:
-        raise ValueError(f"task={name!r} is unknown; choose one of {sorted(_REGISTRY)}")
-    return _REGISTRY[name]()
+        raise ValueError(f"task={name!r} is unknown; choose one of {registered()}")
+    factory = _REGISTRY[name]
+    if isinstance(factory, str):
+        module, _, attr = factory.partition(":")
+        factory = getattr(importlib.import_module(module), attr)
+        _REGISTRY[name] = factory
+    env = factory()
+    if not isinstance(env, Environment):
+        raise TypeError(f"task {name!r}: {factory!r} made a {type(env).__name__}, not an Environment")
+    return env
 
 
 def registered() -> list[str]:

@@ -1,4 +1,5 @@
-"""Checkpoints: flax.serialization bytes, written atomically, with a checksum.
+"""Checkpoints: flax.serialization bytes, written atomically, with a checksum; and
+``load_policy``, a trained policy back from a checkpoint.
 
 File layout (msgpack): ``{"format": FORMAT, "sha256": hex, "payload": bytes}``
 where ``payload`` is itself msgpack of ``{"train_state": flax to_bytes(state),
@@ -23,6 +24,11 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 from flax import serialization
+
+from gvsjax.ppo.config import config_from_json
+from gvsjax.ppo.networks import make_network
+from gvsjax.ppo.train import init, policy_action
+from gvsjax.tasks import make
 
 FORMAT = "gvsjax-checkpoint-v1"
 
@@ -79,11 +85,26 @@ def save(path, train_state, config: dict, task: str, step: int, extra: dict | No
     write_atomic(path, blob)
 
 
-def load_raw(path) -> dict:
-    """The checked payload: ``{"train_state": bytes, "config", "task", "step", "extra"}``."""
+FILE_NAME = "checkpoint.ckpt"  # the checkpoint's name inside a run folder
+
+
+def resolve(path) -> Path:
+    """A checkpoint file from a file path or a run folder (which holds ``FILE_NAME``)."""
     path = Path(path)
     if path.is_dir():
-        raise CheckpointError(f"checkpoint {str(path)!r} is a directory, not a checkpoint file")
+        if not (path / FILE_NAME).is_file():
+            raise CheckpointError(f"checkpoint {str(path)!r} is a folder without {FILE_NAME}: "
+                                  "give a run folder or a checkpoint file")
+        return path / FILE_NAME
+    return path
+
+
+def load_raw(path) -> dict:
+    """The checked payload: ``{"train_state": bytes, "config", "task", "step", "extra"}``.
+
+    ``path`` is a checkpoint file or a run folder holding one.
+    """
+    path = resolve(path)
     if not path.is_file():
         raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
     try:
@@ -151,3 +172,24 @@ def load(path, template) -> tuple[Any, dict]:
     raw = load_raw(path)
     state = restore_state(template, raw.pop("train_state"))
     return state, raw
+
+
+def load_policy(path):
+    """``(config, env, env_params, network params)`` of a training checkpoint (file or run folder).
+
+    ``env_params`` are the task's ``default_params()``, the evaluation distribution.
+    """
+    meta = load_raw(path)
+    config = config_from_json(meta["config"], f"the config saved in {path}")
+    env = make(meta["task"])
+    env_params = env.default_params()
+    template = jax.eval_shape(lambda: init(config, env, env_params, jax.random.PRNGKey(0)))
+    template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template)
+    state = restore_state(template, meta["train_state"])  # CheckpointError if mismatched
+    return config, env, env_params, state.params
+
+
+def make_policy(config, action_size: int, net_params):
+    """The deterministic policy (the Gaussian's mean, clipped) as ``obs (n, k) -> actions (n, a)``."""
+    apply_fn = make_network(config, action_size).apply
+    return lambda obs: policy_action(net_params, apply_fn, obs.astype(jnp.float32)).astype(jnp.float64)

@@ -1,7 +1,7 @@
 """Differentiable-physics baseline for basketball: solve (T, delta) per target by gradients.
 
 For each target the cost c(a) (closest distance in m, ``throw_cost``) is
-differentiated through the simulator (reverse mode through the RK4 scan; the
+differentiated through the simulator (reverse mode through the simulation's scan; the
 closest flight time is held fixed, which by the envelope theorem leaves the
 gradient exact). From ``n_coarse`` coarse starts (a grid over the action box,
 cost only) the ``n_starts`` best are refined by Gauss-Newton steps on the
@@ -22,8 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import gvsjax  # noqa: F401
-from gvsjax.tasks.basketball import BasketballParams, action_to_physical, throw_cost
+from gvsjax.tasks.basketball.params import BasketballParams
+from gvsjax.tasks.basketball.throw import action_to_physical, throw_cost
 
 FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)
 

@@ -1,0 +1,24 @@
+"""The result of a simulation: saved states along time."""
+
+from __future__ import annotations
+
+import jax
+from flax import struct
+
+
+@struct.dataclass
+class Trajectory:
+    """Saved states of a simulation (SI units).
+
+    t (m,), q (m, n), qd (m, n), tip (m, 3) world tip position, tip_velocity
+    (m, 3), joint_torque (m, n_prescribed): the effort the prescribed joints
+    exert (by inverse dynamics), N m for revolute joints. ``m = n_steps /
+    save_every + 1``.
+    """
+
+    t: jax.Array
+    q: jax.Array
+    qd: jax.Array
+    tip: jax.Array
+    tip_velocity: jax.Array
+    joint_torque: jax.Array
