@@ -90,6 +90,9 @@ def solve_pairs(params, targets: np.ndarray, n_iters: int = 12) -> dict:
 
 
 def main(n_random: str = "16", out: str = "figures") -> None:
+    if n_random in ("-h", "--help", "help"):
+        print(__doc__.strip())
+        return
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     params = pp.make_params()

@@ -1,4 +1,4 @@
-"""The ceiling (issue 4, item 4): FLOPs per simulation step, achieved FLOP/s, and the
+"""The ceiling: FLOPs per simulation step, achieved FLOP/s, and the
 fraction of this machine's measured peak for fused float64 elementwise work.
 
 * FLOPs per step: XLA's cost analysis (``jax.jit(f).lower(...).compile().cost_analysis()``)
@@ -12,9 +12,9 @@ fraction of this machine's measured peak for fused float64 elementwise work.
 * Peak: a jitted, fused elementwise kernel of float64 multiply-adds (``x = x * a + b``,
   ``depth`` times per pass, repeated in a ``fori_loop``) on one array of n elements, FLOPs
   counted analytically and checked against the cost analysis; the best of a few (n, depth).
-  Arrays of 64k-1M elements (XLA splits big fusions over the cores) at depth 4-16 run fastest.
-  (An earlier version ran 8 chains as 8 arrays: 8 fusions, each a 64-deep dependent chain per
-  element, latency-bound at ~12.6 GFLOP/s, below the simulator itself.)
+  Arrays of 64k-1M elements (XLA splits big fusions over the cores) at depth 4-16 run fastest;
+  one array, not several, because separate arrays become separate fusions, and a deep dependent
+  chain per element is latency-bound (slower than the simulator itself), not a peak.
 
     python experiments/bench_ceiling.py
 
@@ -36,7 +36,7 @@ from bench_sim import actions, load_average, make_throws  # experiments/ is on s
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 from gvsjax import integrators
-from gvsjax.simulate import FreeDynamics, _Law
+from gvsjax.system import FreeDynamics, Law
 
 THETA_F = math.radians(210.0)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -52,7 +52,7 @@ def step_flops(batch: int, n_modes=2, n_gauss=5):
     basis = "monomial" if n_modes <= 2 else "legendre"
     arm = gv.paper_arm(tip_force=5.886, n_modes=n_modes, n_gauss=n_gauss, basis=basis)
     T = 2.0
-    system = FreeDynamics(arm, _Law(lambda t: THETA_F * (t / T) ** 2, 1), None)
+    system = FreeDynamics(arm, Law(lambda t: THETA_F * (t / T) ** 2, 1), None)
     rk4 = integrators.get("rk4")
     n = len(arm.free)
     q = tuple(jnp.full((batch,), 0.1) for _ in range(n))

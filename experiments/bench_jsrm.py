@@ -1,4 +1,4 @@
-"""gvsjax vs JSRM (planar piecewise-constant-strain rods in JAX) on the basketball swing (issue 4, item 1).
+"""gvsjax vs JSRM (planar piecewise-constant-strain rods in JAX) on the basketball swing.
 
 JSRM (``pip install jsrm``) builds a planar PCS rod from pre-derived symbolic
 expressions (``jsrm.systems.planar_pcs.factory``: sympy -> JAX) and returns
@@ -40,7 +40,7 @@ each at the smallest step count whose worst release tip position over the
 batch is within 1 mm of its own converged run (8x the steps; for float32, of
 the float64 run, so rounding counts against the budget). JSRM runs in float64
 only: in float32 its closed forms, which divide by powers of the bending strain
-(clamped to its global_eps = 1e-6), return non-finite releases (issue 4 notes).
+(clamped to its global_eps = 1e-6), return non-finite releases.
 Reported: simulated s per wall s (median of ``--repeats`` runs), XLA compile
 time, and JSRM's one-time symbolic load (sympy lambdify).
 

@@ -1,4 +1,4 @@
-"""gvsjax vs PyElastica on the paper's basketball swing (issue 4, item 1; also the Fig. 4 check).
+"""gvsjax vs PyElastica on the paper's basketball swing (also the paper's Fig. 4 check).
 
 The same arm (``gvsjax.robots.PAPER_ARM``: 1 m, r = 5 cm, rho = 1000, E = 5 MPa,
 G = E/3, eta = 1e5 Pa s, gravity 9.81 along -y), the same swing
@@ -54,6 +54,7 @@ import numpy as np
 from bench_sim import configurations, load_average, timed  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
+from gvsjax.tasks import basketball as bb
 
 THETA_F = math.radians(210.0)
 BALL = 5.886  # N
@@ -241,12 +242,13 @@ def gvsjax_release_fn(n_steps=300, integrator="rk4", **arm):
 
 
 def flight(p0, v0, n=200):
-    """Ballistic path (n, 2) from release to the floor y = Y_FLOOR; the landing x."""
+    """Ballistic path (n, 2) from release to the floor y = Y_FLOOR; the landing x.
+
+    The basketball task's own flight (``floor_time``, ``flight_point``)."""
     g = P["gravity"]
-    disc = v0[1] ** 2 + 2.0 * g * (p0[1] - Y_FLOOR)
-    tau_end = (v0[1] + math.sqrt(max(disc, 0.0))) / g
-    tau = np.linspace(0.0, tau_end, n)[:, None]
-    path = p0[None, :2] + v0[None, :2] * tau + 0.5 * np.array([0.0, -g]) * tau**2
+    p0, v0 = jnp.asarray(p0, float)[:2], jnp.asarray(v0, float)[:2]
+    tau = np.linspace(0.0, float(bb.floor_time(p0, v0, g, Y_FLOOR)), n)
+    path = np.asarray(bb.flight_point(p0, v0, tau, g))
     return path, float(path[-1, 0])
 
 
@@ -383,8 +385,8 @@ def main() -> None:
     # --- Fig. 4: flight paths, gvsjax 2 modes and converged, PyElastica
     conv = cached_convergence(T, delta, args.convergence_json)
     best = conv[-1]
-    swing2 = jax.jit(lambda: gv.simulate(gv.paper_arm(tip_force=BALL), T * delta, n_steps=1800, check_stability=False,
-                                          base_angle=lambda t: THETA_F * (t / T) ** 2, save_every=18).tip)()
+    task = bb.BasketballParams(arm=gv.paper_arm(tip_force=BALL))  # the task's swing, drawn at 1800 RK4 steps
+    swing2 = jax.jit(lambda: bb.swing(task, T, delta, n_steps=1800, integrator="rk4", save_every=18).tip)()
     paths = {
         f"gvsjax, 2 modes ({default['n_steps']} {default['integrator']} steps)":
             (np.asarray(swing2)[:, :2], flight(p_gv, v_gv)[0]),

@@ -1,4 +1,4 @@
-"""Scaling of the simulator and of one PPO update (issue 4, item 3).
+"""Scaling of the simulator and of one PPO update.
 
 1. batch: throws/s (the paper's swing to release with the task's default
    integration, 40 ars443 steps, T ~ U[0.5, 3] s, delta ~ U[0.85, 1]) and
@@ -123,15 +123,16 @@ def vs_dt(step_counts=DT_STEPS, batch=1024):
 
 
 def vs_ppo(num_envs_list):
+    from gvsjax.ppo import build_config
     from gvsjax.ppo.train import init, make_update, num_updates
     from gvsjax.tasks import make
-    from gvsjax.train import build_config
+    from gvsjax.train import task_defaults
 
     env = make("basketball")
     env_params = env.default_params()
     rows = []
     for n in num_envs_list:
-        config = build_config("basketball", "none", dict(num_envs=n))
+        config = build_config(task_defaults("basketball"), "none", dict(num_envs=n))
         state = init(config, env, env_params, jax.random.PRNGKey(0))
         upd = make_update(config, env, env_params, updates_per_call=1)
         t0 = time.perf_counter()
@@ -161,10 +162,11 @@ def vs_ppo(num_envs_list):
 
 def compile_times(tasks=("basketball", "pickplace")):
     """Compile time of the training program ``python -m gvsjax.train task=...`` runs
-    (``_update_fn`` with the CLI's updates per call) and of the env's parameter tables."""
+    (``update_fn`` with the CLI's updates per call) and of the env's parameter tables."""
+    from gvsjax.ppo import build_config
     from gvsjax.ppo.train import init
     from gvsjax.tasks import make
-    from gvsjax.train import _update_fn, build_config, default_updates_per_call
+    from gvsjax.train import default_updates_per_call, task_defaults, update_fn
 
     rows = []
     for task in tasks:
@@ -173,10 +175,10 @@ def compile_times(tasks=("basketball", "pickplace")):
         env_params = env.default_params()
         jax.block_until_ready(env_params)
         params_s = time.perf_counter() - t0
-        config = build_config(task, "none", {})
+        config = build_config(task_defaults(task), "none", {})
         state = init(config, env, env_params, jax.random.PRNGKey(0))
         per_call = default_updates_per_call(config, env.episode_length)
-        fn = _update_fn(task, config, env, env_params, per_call)
+        fn = update_fn(task, config, env, env_params, per_call)
         t0 = time.perf_counter()
         fn.lower(state).compile()
         compile_s = time.perf_counter() - t0
@@ -246,7 +248,7 @@ def _plot_model(plt, m):
 
 
 def _plot_dt(plt, d):
-    """Cost against accuracy, one line per integrator (old JSON without the key: RK4)."""
+    """Cost against accuracy, one line per integrator (rows without the key: RK4)."""
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     for name in dict.fromkeys(r.get("integrator", "rk4") for r in d):
         rows = [r for r in d if r.get("integrator", "rk4") == name and np.isfinite(r["release_error_m"])]

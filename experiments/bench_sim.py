@@ -1,4 +1,4 @@
-"""Throws per second of the paper's basketball swing, batched (issues 2 and 4).
+"""Throws per second of the paper's basketball swing, batched.
 
 Each throw: theta(t) = theta_F (t/T)^2, theta_F = 210 deg, a 5.886 N tip force,
 T ~ U[0.5, 3] s, simulated to release t = delta T, delta ~ U[0.85, 1], with a
@@ -6,8 +6,7 @@ fixed number of steps per throw (dt = t_rel / n_steps, so every episode of a
 batch has the same length). Three configurations, measured in the same run:
 the basketball task's default (40 ``ars443`` steps), the same in float32
 (``simulate(dtype=jnp.float32)``), and its peer, 300 RK4
-steps (the fewest round number RK4 is stable with for a 3 s throw, and the
-task's default before ars443). The accuracy column is the worst release tip
+steps (the fewest round number RK4 is stable with for a 3 s throw). The accuracy column is the worst release tip
 position error over 256 throws against converged RK4 (3000 steps).
 
     python experiments/bench_sim.py [--repeats 5] [--json out.json]

@@ -10,11 +10,12 @@ hangs from its base angle; the 0.75 N m tendon moment only trims it, mostly
 along the band), so the paper's targets at 0.949 m and 0.978 m from the
 joint are not exactly reachable with this model.
 
-With a checkpoint (``runs/<run>/checkpoint.ckpt`` of ``python -m gvsjax.train
-task=pickplace``), the deterministic policy is run on the paper's pair:
+With a checkpoint (a run folder of ``python -m gvsjax.train task=pickplace`` or
+its ``checkpoint.ckpt``), the deterministic policy is run on the paper's pair:
 ``pickplace_table1.md`` / ``.json`` (Table I: targets, tips, distances, and
-the actions) and ``pickplace_fig6.png`` (Fig. 6: the arm's shapes every 0.5 s
-over both steps, the joint angle and the tendon tension over the 10 s) and,
+the actions) and ``pickplace_fig6.png`` (Fig. 6, the task's ``episode_figure``:
+the arm's shapes every 0.5 s over both steps, the joint angle and the tendon
+tension over the 10 s) and,
 when the run folder has ``metrics.csv``, ``pickplace_learning_curve.png``.
 """
 
@@ -29,12 +30,14 @@ import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
-import gvsjax as gv
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from gvsjax.ppo.checkpoint import load_policy, make_policy, resolve
 from gvsjax.tasks import pickplace as pp
+from gvsjax.tasks.pickplace.figures import episode_figure
 
 
 def reachable_figure(params, path) -> Path:
@@ -50,7 +53,7 @@ def reachable_figure(params, path) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="center", bbox_to_anchor=(0.5, 0.68), fontsize=8)  # inside the band: no point hidden
     ax.set_title("reachable targets (end-of-step tips of random actions)")
     for pts, lab in ((pick, "step 1"), (place, "step 2")):
         bx.scatter(np.degrees(np.arctan2(pts[:, 0], -pts[:, 1])), 100 * np.hypot(*pts.T), s=2, label=lab)
@@ -92,14 +95,10 @@ def learning_curve(metrics_csv, path) -> Path:
     return Path(path)
 
 
-def policy_episode(ckpt, targets):
-    """Actions (2, 2) of the checkpoint's deterministic policy on a target pair (2, 2)."""
-    from gvsjax.evaluate import load_policy
-    from gvsjax.ppo import make_network, policy_action
-
+def policy_actions(ckpt, targets):
+    """``(env params, actions (2, 2))``: the checkpoint's deterministic policy on a target pair (2, 2)."""
     config, env, params, net = load_policy(ckpt)
-    apply_fn = make_network(config, env.action_size).apply
-    policy = lambda o: policy_action(net, apply_fn, o.astype(jnp.float32)).astype(float)
+    policy = make_policy(config, env.action_size, net)
     acts = jax.jit(lambda t: pp.rollout(params, policy, t))(jnp.asarray(targets)[None])[0]
     return params, np.asarray(acts[0])
 
@@ -122,60 +121,10 @@ def table1(params, actions, targets, out: Path) -> dict:
     return {"rows": rows}
 
 
-def fig6(params, actions, targets, path, every: int = 50) -> Path:
-    """Shapes every ``every`` RK4 steps (0.5 s at 500 steps), angle and tension over time.
-
-    Drawn from 500 RK4 steps per 5 s step for smooth curves (the task's 60 ars443 steps end
-    within 0.2 mm of it)."""
-    params = params.replace(**pp.DRAWING_INTEGRATION)
-    save = 5
-    tr1, tr2 = pp.episode(params, jnp.asarray(actions), save_every=save)
-    theta, tension = (np.asarray(x) for x in pp.action_to_physical(jnp.asarray(actions), params))
-    T = params.step_time
-    fig = plt.figure(figsize=(13, 8))
-    axes = [fig.add_subplot(2, 2, 1), fig.add_subplot(2, 2, 2), fig.add_subplot(2, 1, 2)]
-    tension0 = (0.0, tension[0])
-    for k, tr in enumerate((tr1, tr2)):
-        ax = axes[k]
-        q = np.asarray(tr.q)
-        idx = range(0, len(q), every // save)
-        cmap = plt.get_cmap("viridis")
-        for j, i in enumerate(idx):
-            pts = np.asarray(gv.backbone(params.arm, jnp.asarray(q[i])))
-            ax.plot(pts[:, 0], pts[:, 1], color=cmap(j / max(len(idx) - 1, 1)), lw=1.2)
-        tip = np.asarray(tr.tip)
-        ax.plot(tip[:, 0], tip[:, 1], "k--", lw=0.7, label="tip path")
-        ax.plot(*targets[k], "r*", ms=12, label="target")
-        ax.plot(0, 0, "ks")
-        ax.set_aspect("equal")
-        ax.set_xlim(-1.15, 1.15)
-        ax.set_ylim(-1.15, 1.15)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper left")
-        d = np.hypot(*(tip[-1, :2] - targets[k]))
-        ax.set_title(f"step {k + 1}: theta_F = {np.degrees(theta[k]):.1f} deg, "
-                     f"T = {tension[k]:.1f} N, miss {100 * d:.2f} cm (shapes every {every * T / params.n_steps:.1f} s)",
-                     fontsize=9)
-    t = np.concatenate([np.asarray(tr1.t), T + np.asarray(tr2.t)])
-    angle = np.concatenate([np.asarray(tr1.q[:, 0]), np.asarray(tr2.q[:, 0])])
-    pull = np.concatenate([tension0[k] + (tension[k] - tension0[k]) * np.asarray(pp.cycloid(tr.t / T))
-                           for k, tr in enumerate((tr1, tr2))])
-    ax = axes[2]
-    ax.plot(t, np.degrees(angle), "tab:blue")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("joint angle [deg]", color="tab:blue")
-    ax.axvline(T, color="k", lw=0.6, ls=":")
-    bx = ax.twinx()
-    bx.plot(t, pull, "tab:red")
-    bx.set_ylabel("tendon tension [N]", color="tab:red")
-    ax.set_title("joint angle (cycloidal profile) and tendon tension (same smooth ramp) over both steps")
-    path = Path(path)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
-
-
 def main(argv: list[str]) -> None:
+    if any(a in ("-h", "--help", "help") for a in argv):
+        print(__doc__.strip())
+        return
     args = {"checkpoint": "", "out": "figures"}
     for item in argv:
         key, _, value = item.partition("=")
@@ -188,11 +137,11 @@ def main(argv: list[str]) -> None:
     print("wrote", reachable_figure(params, out / "pickplace_reachable.png"))
     if args["checkpoint"]:
         targets = np.asarray(pp.PAPER_PAIR)
-        params, actions = policy_episode(args["checkpoint"], targets)
+        params, actions = policy_actions(args["checkpoint"], targets)
         table1(params, actions, targets, out)
         print("wrote", out / "pickplace_table1.md", out / "pickplace_table1.json")
-        print("wrote", fig6(params, actions, targets, out / "pickplace_fig6.png"))
-        metrics = Path(args["checkpoint"]).parent / "metrics.csv"
+        print("wrote", episode_figure(params, actions, targets, out / "pickplace_fig6.png"))
+        metrics = resolve(args["checkpoint"]).parent / "metrics.csv"
         if metrics.exists():
             print("wrote", learning_curve(metrics, out / "pickplace_learning_curve.png"))
 

@@ -16,8 +16,7 @@ Runs, in order (each step reuses the project's own scripts and modules):
 
 ``--quick`` trains briefly (minutes in all: the figures show the pipeline, not the final
 quality); the default uses the paper-quality settings of the README (basketball 1.2M episodes,
-pick and place 120k; ~15 min on an idle 2-core machine, mostly training; not timed since the 1.2M
-default).
+pick and place 120k), and its wall time is mostly those two trainings.
 """
 
 from __future__ import annotations
@@ -64,6 +63,8 @@ INDEX = {
     "pickplace_run/eval.json": ("Sec. IV-B results", "per-step distance statistics on held-out pairs"),
     "pickplace_run/error_histogram_step1.png": ("Sec. IV-B", "step-1 (pick) distance histogram"),
     "pickplace_run/error_histogram_step2.png": ("Sec. IV-B", "step-2 (place) distance histogram"),
+    "pickplace_run/episode_paper_pair.png": ("Fig. 6", "the policy's episode on the paper's pair"),
+    "pickplace_run/eval_episodes.csv": ("Sec. IV-B results", "per pair: targets, tips, actions, distances"),
     "pickplace_run/config.json": ("-", "the training configuration (reloadable)"),
     "pickplace/pickplace_table1.md": ("Table I", "the paper's target pair: targets, tips, distances, actions"),
     "pickplace/pickplace_table1.json": ("Table I", "the same as JSON"),

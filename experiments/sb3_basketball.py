@@ -9,11 +9,11 @@ this is exactly what a Gymnasium user gets; every env step is one jitted
 throw. ``--vector`` instead hands SB3 the batched ``GvsjaxVectorEnv``
 through a small adapter (``Sb3VecEnv`` below): one jitted call throws for
 all ``n_envs`` at once, several times faster with 8 or more envs. The
-trained policy is then evaluated like ``gvsjax.evaluate``: its deterministic
+trained policy is then evaluated like ``Basketball.evaluate``: its deterministic
 action on ``n_targets`` held-out targets drawn with the keys
 ``split(PRNGKey(eval_seed), n_targets)`` (default seed 1_000_003, the
-evaluation default, never used for training), the same
-``gvsjax.evaluate.metrics`` (success < 10 cm, within 1 cm, median, p95, ...).
+evaluation default, never used for training), the same metrics
+(``gvsjax.tasks.basketball.miss_metrics``: success < 10 cm, within 1 cm, median, p95, ...).
 Writes a results JSON (``--out``) with the wall times, episodes and metrics,
 and ``eval_throws.csv`` beside it.
 """
@@ -31,7 +31,8 @@ import numpy as np
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 import gvsjax.gym  # noqa: F401  (registers gvsjax/Basketball-v0)
-from gvsjax.evaluate import metrics, summary, write_throws_csv
+from gvsjax.evaluate import write_rows
+from gvsjax.tasks.basketball import miss_metrics as metrics
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -129,8 +130,9 @@ def sb3_vector_env(n_envs: int):
 def evaluate_policy(predict, env, env_params, n_targets: int, seed: int) -> dict[str, np.ndarray]:
     """Targets, T, delta and miss (m) of ``predict(obs) -> action`` on held-out targets.
 
-    Same targets and keys as ``gvsjax.evaluate.rollout`` (reset and step with
-    ``split(PRNGKey(seed), n_targets)``); a diverged throw counts as an infinite miss.
+    Same targets and keys as ``Basketball.evaluate`` (reset and step with
+    ``split(PRNGKey(seed), n_targets)``), which needs a jittable policy and SB3's is
+    torch; a diverged throw counts as an infinite miss.
     """
     keys = jax.random.split(jax.random.PRNGKey(seed), n_targets)
     obs, state = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, env_params)
@@ -228,9 +230,10 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
-    write_throws_csv(out.parent / "eval_throws.csv", r)
+    write_rows(out.parent / "eval_throws.csv", {"target_x": r["target"][:, 0], "target_y": r["target"][:, 1],
+                                                "T": r["T"], "delta": r["delta"], "miss_m": r["miss"]})
     print(f"trained {result['timesteps']} steps ({episodes} episodes) in {result['train_s']:.1f} s")
-    print(summary(result))
+    print(task.task.summary(result))
     print(f"wrote {out} and {out.parent / 'eval_throws.csv'}")
     return result
 

@@ -3,9 +3,6 @@
     python experiments/soak.py            # 100,000 throws + 20 trainings
     python experiments/soak.py --quick    # 20,000 throws + 5 trainings
 
-Measured on the shared 2-core machine under a load average of ~14: 658 s and
-200 s (--quick); idle they should take a fraction of that (not measured).
-
 Phase 1 throws random actions at random targets through the basketball env
 (jitted, vmapped ``reset`` + ``step``) in fixed-size batches. Phase 2 runs
 consecutive short trainings through ``gvsjax.train.train`` (the CLI's code
@@ -19,8 +16,8 @@ Checked (exit code 1 if any fails):
   XLA compilations are counted with a ``jax.monitoring`` listener;
 * memory flat: the trend of the resident set size (VmRSS) after the warm-up
   (least-squares slope x iterations) is at most ``--rss-tolerance-mb``
-  (default 64 MB) per phase. A leaked compiled update program was ~100 MB
-  per training here (measured before the seed was taken out of its cache key).
+  (default 64 MB) per phase: a compiled update program leaked per training
+  (e.g. one per seed) is ~100 MB, well above it.
 
 Writes a JSON summary (``--out``, default ``soak.json`` in the working folder).
 """
@@ -59,9 +56,7 @@ def rss_mb() -> float:
 
     Collects cyclic garbage first: matplotlib figures are reference cycles that Python
     frees only at its next cyclic collection, so without it each training's plots
-    show as ~4 MB of "growth" that plateaus (measured: 215 -> 233 MB after 30
-    histograms, then flat; with a collection per plot, flat at 204 MB). A real leak
-    survives the collection.
+    show as a few MB of "growth" that plateaus. A real leak survives the collection.
     """
     gc.collect()
     try:

@@ -7,8 +7,8 @@
 phase-1 learning rate, so ``jax.vmap(train)(keys, rates)`` trains every agent
 at once (and, with several devices, each agent's env batch is split over
 them: ``gvsjax.sharding``). Every agent is then evaluated like
-``gvsjax.evaluate`` (deterministic policy on ``--n-targets`` held-out
-targets, ``gvsjax.evaluate.rollout`` and ``metrics``). Other hyperparameters
+``gvsjax.evaluate`` (its deterministic policy, ``gvsjax.ppo.make_policy``, on
+``--n-targets`` held-out episodes by the task's ``evaluate``). Other hyperparameters
 come from the task's defaults (``gvsjax.train.task_defaults``, as the CLI)
 plus ``key=value`` overrides.
 """
@@ -24,8 +24,7 @@ import jax
 import jax.numpy as jnp
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax.evaluate import metrics, rollout
-from gvsjax.ppo import PPOConfig, from_overrides, make_train
+from gvsjax.ppo import PPOConfig, from_overrides, make_policy, make_train
 from gvsjax.tasks import make
 from gvsjax.train import task_defaults, training_params
 
@@ -77,12 +76,8 @@ def main(argv=None) -> dict:
     agents = []
     for i, (rate, seed) in enumerate(grid):
         params = jax.tree.map(lambda x, i=i: x[i], states.params)
-        if hasattr(env, "evaluate"):  # tasks with their own evaluation (pickplace)
-            result = env.evaluate(config, env_params, params, Path(args.out).parent / f"agent{i}",
-                                  args.n_targets, args.eval_seed)
-        else:
-            result = metrics(rollout(config, env, env_params, params, args.n_targets,
-                                     args.eval_seed)["miss"])
+        policy = make_policy(config, env.action_size, params)
+        result = env.evaluate(env_params, policy, args.n_targets, args.eval_seed).metrics
         agents.append({"learning_rate": rate, "seed": seed,
                        "final_episode_reward": float(curves["episode_reward"][i, -1]), **result})
         print(f"lr {rate:g} seed {seed}: " + ", ".join(

@@ -18,10 +18,11 @@ offers ``accel(t, q, qd)`` and, for IMEX, ``parts(t, q, qd) -> (M, f, K, D)``
 
 ``simulate``'s default is RK4: at 2 ms it puts the fast throw's release within
 1e-9 m of a converged run, where semi-implicit Euler at 1 ms is 1.6 mm off
-(gvs-notes 8.3). Where the step is bounded by stability rather than accuracy,
-as in the basketball task (300 RK4 steps for a 3 s throw, while 40 ARS(4,4,3)
-steps keep every release within 0.5 mm), ``ars443`` does the same work with
-about a seventh of the evaluations.
+(``experiments/integrator_accuracy.py``; docs/physics.md, integrators). Where
+the step is bounded by stability rather than accuracy, as in the basketball
+task (300 RK4 steps for a 3 s throw, while 40 ARS(4,4,3) steps keep every
+release within 0.5 mm), ``ars443`` does the same work with about a seventh of
+the evaluations.
 """
 
 from __future__ import annotations
@@ -52,7 +53,8 @@ class Integrator(NamedTuple):
 # pairs as complex numbers, two come out of one fusion that computes the
 # recursion once. The pack must cross a loop boundary (a stage scan's carry)
 # before it is unpacked: in the same computation XLA folds real(complex(a, b))
-# back to a. Same arithmetic, same results; measured in the issue 4 notes.
+# back to a. Same arithmetic, same results; only the fusion changes
+# (``experiments/bench_ceiling.py`` prints the FLOPs per evaluation both ways).
 
 
 def _pack(xs) -> tuple:
@@ -189,8 +191,8 @@ def _ars443(system, t, q, qd, dt):
 
     # Each stage's acceleration leaves the stage packed (``_pack``) and enters its
     # slot at the next stage. Written into the (4, n) slot array in the stage that
-    # computes it, XLA fused the whole dynamics into that in-place update, whose lanes
-    # lie 4n elements apart: no SIMD across the batch (optimised HLO in the issue 4 notes).
+    # computes it, XLA would fuse the whole dynamics into that in-place update, whose
+    # lanes lie 4n elements apart: no SIMD across the batch.
     def stage(carry, i):
         g_q, g_v, e_v, acc_prev = carry
         e_v = e_v.at[i].set(arr(_unpack(acc_prev, n)) - g_v[i])

@@ -3,7 +3,8 @@
 One pass from the base to the tip gives, at every sample point, the world pose
 (R, p), the body-frame geometric Jacobian J (6 x n), the body twist eta = J qd
 and psi = Jdot qd. Soft links advance between sample points with a 4th-order
-Magnus (Zanna collocation) step, as SoRoSim does (gvs-notes sections 3-4).
+Magnus (Zanna collocation) step, as SoRoSim does (Mathew et al. 2023; docs/physics.md,
+Magnus steps).
 
 Public helpers return ordinary arrays: ``backbone`` (positions along the
 robot), ``tip_state`` (tip position and velocity), ``jacobians`` (J and Jdot at
@@ -130,7 +131,7 @@ class Point:
 
 
 def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
-    """One step g <- g exp(O): update pose, J, eta, psi (gvs-notes section 4)."""
+    """One step g <- g exp(O): update pose, J, eta, psi (docs/physics.md, Magnus steps)."""
     R, p, J, eta, psi = state
     J = list(J)
     for k, col in zip(cols_idx, S_cols):

@@ -181,7 +181,7 @@ def ad_transpose(x: Vec, y: Vec) -> Vec:
 # ----------------------------------------------------------------------------
 # coefficient functions of u = |w|^2, safe (value and gradient) at u = 0
 
-# Series in u (through u^4; gvs-notes 1.4) and the threshold below which they are
+# Series in u (through u^4; docs/physics.md, precision) and the threshold below which they are
 # used. fp64: theta < 0.1 and terms through u^3 (truncation < 1e-13; the closed
 # forms lose ~1e-10 to cancellation at theta = 0.1). fp32: theta < 1 and terms
 # through u^4 (truncation ~3e-8, at fp32 rounding), where the closed forms would

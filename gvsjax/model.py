@@ -124,7 +124,7 @@ class SoftLink:
 
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
     by default (SoRoSim's convention); ``damping_factors`` scales each entry
-    of ``diag(J, I, I, A, A, A)`` and exists for ablation.
+    of ``diag(J, I, I, A, A, A)``, for other damping conventions.
     """
 
     length: Any = 1.0

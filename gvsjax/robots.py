@@ -52,7 +52,8 @@ def paper_arm(**overrides: Any) -> Robot:
     tendons: tuple[Tendon, ...] = ()
     if p["tendon_offset"] is not None:
         finite("tendon_offset", p["tendon_offset"])
-        if concrete(p["tendon_offset"]) and concrete(p["radius"]):  # (issue 6) the user's name
+        # checked here so the error names paper_arm's parameter; only concrete numbers can be compared
+        if concrete(p["tendon_offset"]) and concrete(p["radius"]):
             require(abs(float(p["tendon_offset"])) <= float(p["radius"]), "tendon_offset", p["tendon_offset"],
                     f"|tendon_offset| <= radius={float(p['radius'])} m (the tendon runs inside the rod)")
         tendons = (Tendon(offset=p["tendon_offset"], link=0, direction=(1.0, 0.0)),)
@@ -82,7 +83,7 @@ def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=
     """A straight rod clamped at the origin along +x with all six strains active.
 
     order: one polynomial order for every strain, or six (-1 = inactive)."""
-    # --- validation (reliability, issue 6): name rod_3d's own parameters ---
+    # validated here so that errors name rod_3d's own parameters, not the SoftLink fields
     for key, value in (("length", length), ("radius", radius), ("youngs_modulus", youngs_modulus),
                        ("density", density)):
         positive(key, value)
@@ -95,7 +96,6 @@ def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=
     require(isinstance(n_gauss, int) and not isinstance(n_gauss, bool) and n_gauss >= max(orders) + 1,
             "n_gauss", n_gauss, f"an int >= {max(orders) + 1} (highest order + 1)")
     require(basis in ("monomial", "legendre"), "basis", basis, "'monomial' or 'legendre'")
-    # --- end validation ---
     link = SoftLink(
         length=length, radius=radius,
         material=Material(youngs_modulus, density, damping, poisson),

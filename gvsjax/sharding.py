@@ -115,7 +115,7 @@ def batched(fn: Callable, in_axes: int | tuple = 0) -> Callable:
     size works. Compiled once per input shape, like ``jax.jit``. Results equal
     the single-device ``jit(vmap(fn))`` up to the last bits: XLA compiles the
     partitioned program separately and may round a few float operations
-    differently (measured: 2 ulp on the throw's release position).
+    differently (e.g. 2 ulp on the throw's release position).
     """
     vfn = jax.vmap(fn, in_axes=in_axes)
     single = jax.jit(vfn)
