@@ -1,5 +1,6 @@
 """PPO for gvsjax tasks: ``config`` (hyperparameters, presets), ``networks`` (actor-critics),
-``losses`` (GAE and the clipped objective), ``train`` (pure, jittable training),
+``losses`` (GAE and the clipped objective), ``rollout`` (collecting experience),
+``train`` (pure, jittable updates),
 ``checkpoint`` (atomic checkpoints, ``load_policy``)."""
 
 from gvsjax.ppo.checkpoint import CheckpointError, load_policy, make_policy
@@ -22,17 +23,14 @@ from gvsjax.ppo.losses import (
     ppo_loss,
 )
 from gvsjax.ppo.networks import SeparateActorCritic, SharedActorCritic, make_network
+from gvsjax.ppo.rollout import Rollout, TrainState, collect, episode_metrics, policy_action
 from gvsjax.ppo.train import (
-    Rollout,
-    TrainState,
-    collect,
     finetune_start,
     init,
     make_train,
     make_update,
     num_updates,
     phase_hyperparams,
-    policy_action,
     update,
 )
 
@@ -42,6 +40,6 @@ __all__ = [
     "from_overrides",
     "Batch", "clipped_gaussian_log_prob", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
     "SeparateActorCritic", "SharedActorCritic", "make_network",
-    "TrainState", "Rollout", "collect", "finetune_start", "init", "make_train",
+    "TrainState", "Rollout", "collect", "episode_metrics", "finetune_start", "init", "make_train",
     "make_update", "num_updates", "phase_hyperparams", "policy_action", "update",
 ]

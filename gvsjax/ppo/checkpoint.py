@@ -27,7 +27,8 @@ from flax import serialization
 
 from gvsjax.ppo.config import config_from_json
 from gvsjax.ppo.networks import make_network
-from gvsjax.ppo.train import init, policy_action
+from gvsjax.ppo.rollout import policy_action
+from gvsjax.ppo.train import init
 from gvsjax.tasks import make
 
 FORMAT = "gvsjax-checkpoint-v1"
