@@ -73,12 +73,25 @@ def _weighted_gram(robot: Robot, li: int, per_component: Sequence) -> list[list]
     return out
 
 
+def _per_dof(value, k: int):
+    """Entry k of a per-joint-DoF parameter given as a scalar (the same for each) or a sequence;
+    a Python 0 stays a structural zero (no term is traced for a joint without spring or damper)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return 0 if value == 0 else value
+    v = jnp.asarray(value)
+    return v if v.ndim == 0 else v[k]
+
+
 def stiffness_and_damping(robot: Robot) -> tuple[list[list], list[list]]:
-    """K and D (n x n, scalar algebra): sum_i W_i Phi_i^T Sigma Phi_i, likewise for D."""
+    """K and D (n x n, scalar algebra): sum_i W_i Phi_i^T Sigma Phi_i for the soft DoFs, likewise
+    for D; the links' ``joint_stiffness``/``joint_damping`` on the joint DoFs' diagonal."""
     n = robot.n_dofs
     K = [[0] * n for _ in range(n)]
     D = [[0] * n for _ in range(n)]
-    for li, (link, (_, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+    for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        for big, value in ((K, link.joint_stiffness), (D, link.joint_damping)):
+            for k in range(s0 - j0):
+                big[j0 + k][j0 + k] = _per_dof(value, k)
         if not isinstance(link, SoftLink) or end == s0:
             continue
         sec = section(link)
@@ -156,11 +169,12 @@ def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
 
 
 def mass_and_forces(
-    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = ()
+    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = (), joint_force: Sequence = ()
 ) -> tuple[list[list], list]:
     """M (lower triangle filled, scalar algebra) and F with every force included.
 
-    q, qd: n scalars each; tension: one value per tendon (N, >= 0).
+    q, qd: n scalars each; tension: one value per tendon (N, >= 0); joint_force:
+    one generalized force per ``robot.actuated`` coordinate (N m or N), or empty.
     """
     n = robot.n_dofs
     points = forward(robot, q, qd, with_psi=True)
@@ -186,6 +200,8 @@ def mass_and_forces(
             F[j] = add(F[j], dot(pt.J[j], wrench))
     K, D = stiffness_and_damping(robot)
     tau = _tendon_force(robot, q, tension) if robot.tendons else [0] * n
+    for i, f in zip(robot.actuated, joint_force):
+        tau[i] = add(tau[i], f)
     for j in range(n):
         elastic = total([mul(K[j][k], q[k]) for k in range(n)] + [mul(D[j][k], qd[k]) for k in range(n)])
         F[j] = add(sub(F[j], elastic), tau[j])

@@ -154,13 +154,13 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
     state = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
     points: list[Point] = []
     for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
-        if link.joint.n_dofs:
-            phi_j = tuple(const(a) for a in link.joint.twist_basis())
-            O = vscale(q[j0], phi_j)
-            Od = vscale(qd[j0], phi_j)
+        for k, twist in enumerate(link.joint.twists()):
+            phi_j = tuple(const(a) for a in twist)
+            O = vscale(q[j0 + k], phi_j)
+            Od = vscale(qd[j0 + k], phi_j)
             R_s, p_s = lie.exp_se3(O)
-            # single-DoF joint: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
-            state = _advance(state, R_s, p_s, [phi_j], [j0], Od, zeros(6), with_psi)
+            # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
+            state = _advance(state, R_s, p_s, [phi_j], [j0 + k], Od, zeros(6), with_psi)
         if isinstance(link, SoftLink):
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
         else:

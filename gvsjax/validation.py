@@ -66,6 +66,16 @@ def check_robot(robot) -> None:
     require(len(robot.links) >= 1, "links", robot.links, "at least one link")
     nonnegative("gravity", robot.gravity)
     for i, link in enumerate(robot.links):
+        if not isinstance(link, (SoftLink, RigidLink)):
+            raise ValueError(f"links[{i}]={type(link).__name__} is invalid: expected SoftLink or RigidLink")
+        nj = link.joint.n_dofs
+        for name in ("joint_stiffness", "joint_damping"):
+            value = getattr(link, name)
+            if concrete(value):
+                v = _numbers(f"links[{i}].{name}", value, None)
+                require(v.shape in ((), (nj,)), f"links[{i}].{name}", value,
+                        f"a scalar or {nj} values (one per joint DoF)")
+            nonnegative(f"links[{i}].{name}", value)
         if isinstance(link, SoftLink):
             positive(f"links[{i}].length", link.length)
             positive(f"links[{i}].radius", link.radius)
