@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import Point, coords, forward, grid_of, scaled_columns, strain
+from gvsjax.kinematics import Point, coords, forward, grid_of, rest_strain, scaled_columns, strain
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale
 from gvsjax.model import RigidLink, Robot, SoftLink
 
@@ -34,42 +34,75 @@ from gvsjax.model import RigidLink, Robot, SoftLink
 class Section:
     """Per-unit-length diagonals (6 entries each, twist order)."""
 
-    inertia: tuple  # rho * (J, I, I, A, A, A)
-    stiffness: tuple  # (G J, E I, E I, E A, G A, G A)
-    damping: tuple  # eta * factors * (J, I, I, A, A, A)
+    inertia: tuple  # rho * (Ip, Iy, Iz, A, A, A)
+    stiffness: tuple  # (G Jt, E Iy, E Iz, E A, G A, G A)
+    damping: tuple  # eta * factors * (Jt, Iy, Iz, A, A, A)
 
 
-def section(link: SoftLink) -> Section:
-    r = link.radius
-    area = math.pi * r * r
-    second = math.pi * r**4 / 4.0
-    geo = (2.0 * second, second, second, area, area, area)
+def _geometry(link: SoftLink, scale) -> tuple[tuple, tuple]:
+    """(Ip, Iy, Iz, A, A, A) for inertia and (Jt, Iy, Iz, A, A, A) for stiffness, dimensions
+    multiplied by ``scale``. Jt is Saint-Venant's torsion constant: the polar moment for a
+    circle, pi a^3 b^3 / (a^2 + b^2) for an ellipse, Roark's series for a rectangle."""
+    if link.shape == "circle":
+        r = link.radius * scale
+        area, second = math.pi * r * r, math.pi * r**4 / 4.0
+        geo = (2.0 * second, second, second, area, area, area)
+        return geo, geo
+    w, h = link.width * scale, link.height * scale
+    if link.shape == "ellipse":
+        a, b = w / 2.0, h / 2.0
+        area, iy, iz = math.pi * a * b, math.pi * a * b**3 / 4.0, math.pi * a**3 * b / 4.0
+        jt = math.pi * a**3 * b**3 / (a * a + b * b)
+    else:
+        area, iy, iz = w * h, w * h**3 / 12.0, h * w**3 / 12.0
+        long, short = jnp.maximum(w, h), jnp.minimum(w, h)
+        r = short / long
+        jt = long * short**3 * (1.0 / 3.0 - 0.21 * r * (1.0 - r**4 / 12.0))
+    return (iy + iz, iy, iz, area, area, area), (jt, iy, iz, area, area, area)
+
+
+def section(link: SoftLink, X: float = 0.0) -> Section:
+    """The section's diagonals at material coordinate X (the base's when untapered)."""
+    scale = 1.0 if _uniform(link) else 1.0 + (link.taper - 1.0) * X
+    geo_m, geo_k = _geometry(link, scale)
     mat = link.material
     shear = mat.youngs_modulus / (2.0 * (1.0 + mat.poisson))
     stiff = (shear, mat.youngs_modulus, mat.youngs_modulus) + (mat.youngs_modulus, shear, shear)
     return Section(
-        inertia=tuple(mat.density * g for g in geo),
-        stiffness=tuple(s * g for s, g in zip(stiff, geo)),
-        damping=tuple(mat.damping * f * g for f, g in zip(link.damping_factors, geo)),
+        inertia=tuple(mat.density * g for g in geo_m),
+        stiffness=tuple(s * g for s, g in zip(stiff, geo_k)),
+        damping=tuple(mat.damping * f * g for f, g in zip(link.damping_factors, geo_k)),
     )
 
 
-def _weighted_gram(robot: Robot, li: int, per_component: Sequence) -> list[list]:
-    """sum_i W_i Phi_i^T diag(c) Phi_i for a soft link (n_s x n_s, scalar algebra)."""
+def _uniform(link: SoftLink) -> bool:
+    """True when the section is the same all along (a taper of exactly 1, known at trace time)."""
+    return isinstance(link.taper, (int, float)) and link.taper == 1
+
+
+def _weighted_gram(robot: Robot, li: int, per_component) -> list[list]:
+    """sum_i W_i Phi_i^T diag(c(X_i)) Phi_i for a soft link (n_s x n_s, scalar algebra).
+
+    ``per_component(X)`` gives the six diagonal entries at X; a uniform link takes them once.
+    """
     link = robot.links[li]
     grid = grid_of(robot, li)
     L = link.length
     n = grid.phi.shape[2]
     scale = [1.0 / (L * L) if c < 3 else 1.0 for c in range(6)]  # SoRoSim 1/L on angular rows
     out = [[0] * n for _ in range(n)]
-    for c in range(6):
-        gram = np.einsum("i,ij,ik->jk", grid.w, grid.phi[:, c, :], grid.phi[:, c, :])
-        if not np.any(gram):
-            continue
-        coef = mul(mul(per_component[c], L), scale[c])
-        for j in range(n):
-            for k in range(n):
-                out[j][k] = add(out[j][k], mul(coef, const(gram[j, k])))
+    points = [0.0] if _uniform(link) else [float(x) for x, w in zip(grid.X, grid.w) if w > 0]
+    weights = [grid.w] if _uniform(link) else [np.where(grid.X == x, grid.w, 0.0) for x in points]
+    for x, w in zip(points, weights):
+        diag = per_component(x)
+        for c in range(6):
+            gram = np.einsum("i,ij,ik->jk", w, grid.phi[:, c, :], grid.phi[:, c, :])
+            if not np.any(gram):
+                continue
+            coef = mul(mul(diag[c], L), scale[c])
+            for j in range(n):
+                for k in range(n):
+                    out[j][k] = add(out[j][k], mul(coef, const(gram[j, k])))
     return out
 
 
@@ -94,9 +127,8 @@ def stiffness_and_damping(robot: Robot) -> tuple[list[list], list[list]]:
                 big[j0 + k][j0 + k] = _per_dof(value, k)
         if not isinstance(link, SoftLink) or end == s0:
             continue
-        sec = section(link)
-        for big, diag in ((K, sec.stiffness), (D, sec.damping)):
-            block = _weighted_gram(robot, li, diag)
+        for big, part in ((K, "stiffness"), (D, "damping")):
+            block = _weighted_gram(robot, li, lambda x, link=link, part=part: getattr(section(link, x), part))
             for j in range(end - s0):
                 for k in range(end - s0):
                     big[s0 + j][s0 + k] = block[j][k]
@@ -157,7 +189,7 @@ def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
             if grid.w[i] == 0.0:
                 continue
             cols = scaled_columns(grid.phi[i], inv_L)
-            xi = strain(cols, q[s0:end])
+            xi = strain(cols, q[s0:end], rest_strain(link, float(grid.X[i])))
             t_raw = vadd(lie.cross(xi[:3], d), xi[3:])
             inv_norm = 1.0 / jnp.sqrt(lie.as_array(dot(t_raw, t_raw)))
             t = vscale(inv_norm, t_raw)
@@ -185,7 +217,7 @@ def mass_and_forces(
     for pt in points:
         link = robot.links[pt.link]
         if pt.kind == "soft" and not lie.is_zero(pt.weight):
-            _add_body(M, F, pt, section(link).inertia, pt.weight, g_world)
+            _add_body(M, F, pt, section(link, pt.X).inertia, pt.weight, g_world)
         elif pt.kind == "rigid":
             _add_body(M, F, pt, _rigid_inertia(link), 1.0, g_world)
     for pm in robot.masses:
@@ -258,7 +290,7 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     for pt in points:
         link = robot.links[pt.link]
         if pt.kind == "soft" and not lie.is_zero(pt.weight):
-            body(pt, section(link).inertia, pt.weight)
+            body(pt, section(link, pt.X).inertia, pt.weight)
         elif pt.kind == "rigid":
             body(pt, _rigid_inertia(link), 1.0)
     for pm in robot.masses:

@@ -27,6 +27,7 @@ from gvsjax.lie import const, mul, vadd, vscale, zeros
 from gvsjax.model import RigidLink, Robot, SoftLink, StrainBasis
 
 XI_STAR = (0, 0, 0, 1.0, 0, 0)  # straight, unstretched, unsheared reference strain
+ZANNA = (0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6)  # Gauss collocation points of a Magnus step
 
 
 # ----------------------------------------------------------------------------
@@ -63,7 +64,7 @@ def link_grid(basis: StrainBasis, n_gauss: int, extra: tuple[float, ...] = ()) -
     X = np.array(sorted(pts))
     w = np.array([pts[x] for x in X])
     dX = np.diff(X)
-    c1, c2 = 0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6
+    c1, c2 = ZANNA
     phi = np.stack([basis.raw(x) for x in X])
     phi1 = np.stack([basis.raw(a + c1 * d) for a, d in zip(X[:-1], dX)])
     phi2 = np.stack([basis.raw(a + c2 * d) for a, d in zip(X[:-1], dX)])
@@ -91,9 +92,20 @@ def scaled_columns(raw: np.ndarray, inv_length) -> list[tuple]:
     ]
 
 
-def strain(cols: Sequence[tuple], q: Sequence) -> tuple:
+def rest_strain(link: SoftLink, X: float) -> tuple:
+    """xi*(X) of a soft link (see ``SoftLink.rest_strain``)."""
+    if link.rest_strain is None:
+        return XI_STAR
+    c = jnp.asarray(link.rest_strain)
+    if c.ndim == 1:
+        return tuple(c[r] for r in range(6))
+    powers = jnp.asarray([X**j for j in range(c.shape[1])], c.dtype)
+    return tuple(c[r] @ powers for r in range(6))
+
+
+def strain(cols: Sequence[tuple], q: Sequence, rest: tuple = XI_STAR) -> tuple:
     """xi = Phi q + xi*."""
-    out = XI_STAR
+    out = rest
     for col, qk in zip(cols, q):
         out = vadd(out, vscale(qk, col))
     return out
@@ -185,7 +197,8 @@ def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         half_h = mul(0.5, h)
         P1 = scaled_columns(grid.phi1[i], inv_L)
         P2 = scaled_columns(grid.phi2[i], inv_L)
-        xi1, xi2 = strain(P1, qs), strain(P2, qs)
+        x1, x2 = grid.X[i] + ZANNA[0] * grid.dX[i], grid.X[i] + ZANNA[1] * grid.dX[i]
+        xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
         xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
         # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
         O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))

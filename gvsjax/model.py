@@ -143,9 +143,22 @@ class Material:
     poisson: Any = 0.5
 
 
+SECTION_SHAPES = ("circle", "ellipse", "rectangle")
+
+
 @struct.dataclass
 class SoftLink:
-    """A Cosserat rod of circular section, straight and unstretched at rest.
+    """A Cosserat rod: its section, material, strain basis and rest shape.
+
+    Section (``shape``): "circle" of ``radius``; "ellipse" with semi-axes
+    ``width``/2 along the local y and ``height``/2 along z; "rectangle"
+    ``width`` (y) by ``height`` (z). ``taper`` scales every dimension linearly
+    from 1 at the base (X = 0) to ``taper`` at the tip (X = 1). The rest shape
+    is the reference strain xi*(X) (``rest_strain``): None is straight and
+    unstretched, (0, 0, 0, 1, 0, 0); a (6,) array is a constant one (a
+    pre-curved arc, a pre-twisted rod); a (6, k) array holds the coefficients
+    of a polynomial in X, column j multiplying X^j. Its angular rows are in
+    1/m, its linear rows dimensionless. q measures the strain from xi*.
 
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
     by default (SoRoSim's convention); ``damping_factors`` scales each entry
@@ -155,6 +168,11 @@ class SoftLink:
     length: Any = 1.0
     radius: Any = 0.05
     material: Material = Material()
+    width: Any = 0.1  # m, "ellipse" and "rectangle": extent along the section's y axis
+    height: Any = 0.1  # m, extent along z
+    taper: Any = 1.0  # tip-to-base ratio of every section dimension
+    rest_strain: Any = None
+    shape: str = struct.field(pytree_node=False, default="circle")
     basis: StrainBasis = struct.field(pytree_node=False, default=StrainBasis())
     joint: Joint = struct.field(pytree_node=False, default=Joint())
     n_gauss: int = struct.field(pytree_node=False, default=5)
