@@ -300,16 +300,19 @@ def _inverse(robot: Robot, target, q0, tension, qa, steps, tol, max_iter, eq_tol
         pick = lambda new, old: jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, old)  # noqa: E731
         x, res, e, J, err = pick((x_try, res_try, p_try - target, J_try, err_try), (x, res, e, J, err))
         lam = jnp.where(ok, lam / 3.0, lam * 4.0)
-        # damped least squares in unit-column scaling: dx = -J^T (J J^T + lam I)^-1 e
+        # damped least squares in unit-column scaling, dz = -J^T (J J^T + lam I)^-1 e, with
+        # tensions held at 0 that would go negative left out (else the projection stalls)
         d = jnp.linalg.norm(J, axis=0)
         d = jnp.where(d > 0, d, 1.0)
-        step = -((J / d).T @ jnp.linalg.solve((J / d) @ (J / d).T + lam * jnp.eye(3), e)) / d
-        moving = jnp.linalg.norm(d * step) > 1e-3 * tol  # the predicted tip motion dies out at a least-squares point
+        dz = lambda Js: -(Js.T @ jnp.linalg.solve(Js @ Js.T + lam * jnp.eye(3), e))  # noqa: E731
+        Js = J * (1.0 - ((x <= lower) & (dz(J / d) < 0))) / d
+        step = dz(Js) / d
+        moving = jnp.linalg.norm(Js.T @ e) > 1e-6 * err  # first-order optimality: a least-squares point
         return x, res, e, J, err, lam, it + 1, jnp.maximum(x + step, lower), jnp.ones((), int), moving
 
     res0 = StaticsResult(q0, jnp.asarray(jnp.inf), jnp.zeros((), int), jnp.asarray(False))
     # e starts as NaN: should the first equilibrium fail, the reported tip is NaN, not the target
-    init = (x0, res0, jnp.full(3, jnp.nan), jnp.zeros((3, x0.shape[0])), jnp.asarray(jnp.inf), jnp.asarray(1e-6),
+    init = (x0, res0, jnp.full(3, jnp.nan), jnp.zeros((3, x0.shape[0])), jnp.asarray(jnp.inf), jnp.asarray(1e-2),
             jnp.zeros((), int), x0, jnp.asarray(steps, dtype=int), jnp.asarray(True))
     x, res, e, _, err, _, it, _, _, _ = jax.lax.while_loop(cond, body, init)
     T, qa_out = unpack(x)
