@@ -148,15 +148,28 @@ def test_tendon_bends_into_circular_arc_and_inverse_statics_recovers_tension():
     res = equilibrium(arm, tendon_force=150.0, prescribed=HORIZONTAL)
     assert bool(res.converged)
     tip = np.asarray(tip_of(arm, res.q))
-    np.testing.assert_allclose(tip, arc_tip(150.0), rtol=5e-3, atol=1e-12)
-    # measured: exact to rounding (the basis holds a constant curvature)
-    np.testing.assert_allclose(tip, arc_tip(150.0), atol=1e-12)
+    # far inside 0.5%: exact to rounding, as the linear-curvature basis holds a constant one
+    np.testing.assert_allclose(tip, arc_tip(150.0), rtol=0, atol=1e-12)
 
-    inv = inverse_statics(arm, arc_tip(150.0), controls="tension", tension0=20.0, prescribed0=HORIZONTAL)
-    assert bool(inv.converged)
+    # both controls at once (one compiled program): from 20 N and 1.3 rad back to 150 N
+    # and the horizontal pi/2 (measured: 4.6e-8 and 2.2e-9 relative, 9 evaluations)
+    inv = inverse_statics(arm, arc_tip(150.0), controls=("tension", "prescribed"), tension0=20.0,
+                          prescribed0=[1.3])
+    assert bool(inv.converged) and float(inv.error) <= 1e-9
     assert float(inv.tension[0]) == pytest.approx(150.0, rel=1e-4)
-    assert float(inv.prescribed[0]) == pytest.approx(np.pi / 2, abs=0)  # not a control: untouched
-    assert float(inv.error) <= 1e-9
+    assert float(inv.prescribed[0]) == pytest.approx(np.pi / 2, rel=1e-4)
+
+
+def test_inverse_statics_out_of_reach_ends_at_the_nearest_point():
+    """No tension and base angle put the tip 2.06 m out: the least-squares answer is the
+    straight arm (zero tension, the bound) pointing at the target."""
+    target = np.array([2.0, 0.5, 0.0])
+    inv = inverse_statics(tendon_arm(), target, controls=("tension", "prescribed"),
+                          tension0=20.0, prescribed0=[1.3])
+    assert not bool(inv.converged)
+    assert float(inv.tension[0]) >= 0.0
+    np.testing.assert_allclose(inv.tip, target / np.linalg.norm(target), atol=1e-5)
+    assert float(inv.error) == pytest.approx(np.linalg.norm(target) - 1.0, abs=1e-6)
 
 
 def drop(P):
