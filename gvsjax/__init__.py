@@ -51,6 +51,7 @@ from gvsjax.model import (  # noqa: E402
     Material,
     PointLoad,
     PointMass,
+    PointWrench,
     RigidLink,
     Robot,
     SoftLink,
@@ -64,7 +65,7 @@ from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
 from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
-    "Joint", "Material", "PointLoad", "PointMass", "RigidLink", "Robot", "SoftLink", "StrainBasis",
+    "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
     "Tendon", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory", "stable_step_estimate",
     "backbone", "frames", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",

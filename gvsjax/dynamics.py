@@ -200,13 +200,32 @@ def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
     return tau
 
 
+def _distributed(robot: Robot, pt: Point, t) -> tuple:
+    """The distributed load at a soft sample point, per metre, in the section's frame."""
+    R = jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R])
+    p = jnp.stack([lie.as_array(a) for a in pt.p])
+    eta = jnp.stack([lie.as_array(a) for a in pt.eta])
+    w = jnp.reshape(robot.distributed(pt.X, R, p, eta, t), (6,))
+    return tuple(w[k] for k in range(6))
+
+
+def _add_wrench(F, pt: Point, wrench: Sequence, local: bool, weight=1.0) -> None:
+    """F += weight J^T w, w = (moment, force) given in the section's frame or the world's."""
+    w = tuple(wrench) if local else lie.matTvec(pt.R, tuple(wrench[:3])) + lie.matTvec(pt.R, tuple(wrench[3:]))
+    for j in range(len(F)):
+        F[j] = add(F[j], mul(weight, dot(pt.J[j], w)))
+
+
 def mass_and_forces(
-    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = (), joint_force: Sequence = ()
+    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = (), joint_force: Sequence = (),
+    wrench: Sequence = (), t=0.0,
 ) -> tuple[list[list], list]:
     """M (lower triangle filled, scalar algebra) and F with every force included.
 
     q, qd: n scalars each; tension: one value per tendon (N, >= 0); joint_force:
-    one generalized force per ``robot.actuated`` coordinate (N m or N), or empty.
+    one generalized force per ``robot.actuated`` coordinate (N m or N), or empty;
+    wrench: one 6-vector (moment, force) per ``robot.wrenches`` entry, or empty;
+    t: the time the distributed load is evaluated at.
     """
     n = robot.n_dofs
     points = forward(robot, q, qd, with_psi=True)
@@ -223,6 +242,12 @@ def mass_and_forces(
     for pm in robot.masses:
         pt = _point_of(points, pm.link, pm.X, n_links)
         _add_body(M, F, pt, (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0, g_world)
+    if robot.distributed is not None:
+        for pt in points:
+            if pt.kind == "soft" and not lie.is_zero(pt.weight):
+                _add_wrench(F, pt, _distributed(robot, pt, t), True, pt.weight)
+    for site, w in zip(robot.wrenches, wrench):
+        _add_wrench(F, _point_of(points, site.link, site.X, n_links), w, site.local)
     for load in robot.loads:
         pt = _point_of(points, load.link, load.X, n_links)
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)

@@ -110,6 +110,14 @@ def tension_law(robot: Robot, tendon_force) -> tuple[Law | None, Any]:
     return input_law("tendon_force", tendon_force, len(robot.tendons), "tendons", True)
 
 
+def wrench_law(robot: Robot, wrench) -> tuple[Law | None, Any]:
+    """Wrenches (moment, force) at ``robot.wrenches``, (n, 6) or flattened: (law or None, constant or None)."""
+    n = len(robot.wrenches)
+    if wrench is not None and not callable(wrench) and concrete(wrench) and np.shape(wrench) == (n, 6):
+        wrench = np.reshape(np.asarray(wrench, dtype=float), (6 * n,))
+    return input_law("wrench", wrench, 6 * n, "wrench points", False)
+
+
 def joint_force_law(robot: Robot, joint_force) -> tuple[Law | None, Any]:
     """Forces on the actuated joint coordinates: (callable law or None, constant array or None)."""
     return input_law("joint_force", joint_force, len(robot.actuated), "actuated joints", False)
@@ -117,7 +125,7 @@ def joint_force_law(robot: Robot, joint_force) -> tuple[Law | None, Any]:
 
 @dataclass(frozen=True)
 class Controller:
-    """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,)}``
+    """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,), "wrench": (n_w, 6)}``
     sampled every ``every`` integrator steps and held in between (zero-order hold).
 
     Hashed by the function's identity (the compiled program is reused)."""
@@ -131,10 +139,10 @@ class Controller:
         return {k: jnp.reshape(jnp.asarray(out[k]).astype(jnp.result_type(t)), (-1,)) for k in self.keys}
 
 
-CONTROL_KEYS = ("tendon_force", "joint_force")
+CONTROL_KEYS = ("tendon_force", "joint_force", "wrench")
 
 
-def controller(robot: Robot, fn, every, tendon_force, joint_force) -> Controller | None:
+def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None) -> Controller | None:
     """The checked zero-order-hold controller, or None."""
     if fn is None:
         require(every is None, "control_every", every, "None without a controller")
@@ -147,8 +155,9 @@ def controller(robot: Robot, fn, every, tendon_force, joint_force) -> Controller
     out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), f64), x, x)
     require(isinstance(out, dict) and bool(out) and set(out) <= set(CONTROL_KEYS), "controller", fn,
             f"a callable returning a dict with keys among {list(CONTROL_KEYS)}")
-    sizes = {"tendon_force": len(robot.tendons), "joint_force": len(robot.actuated)}
-    for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force)):
+    sizes = {"tendon_force": len(robot.tendons), "joint_force": len(robot.actuated),
+             "wrench": 6 * len(robot.wrenches)}
+    for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force), ("wrench", wrench)):
         if key in out:
             require(given is None, key, given, "None when the controller sets it")
             require(math.prod(out[key].shape) == sizes[key] > 0, "controller", fn,

@@ -75,7 +75,7 @@ def extra_points(robot: Robot, link_index: int) -> tuple[float, ...]:
     """Material points of a link where a load or mass acts (sampled exactly)."""
     n = len(robot.links)
     return tuple(
-        sorted({float(m.X) for m in (*robot.loads, *robot.masses) if m.link % n == link_index})
+        sorted({float(m.X) for m in (*robot.loads, *robot.masses, *robot.wrenches) if m.link % n == link_index})
     )
 
 

@@ -242,12 +242,31 @@ class Tendon:
 
 
 @struct.dataclass
+class PointWrench:
+    """Where a 6-D wrench input acts: material point ``X`` of ``link``. Its value,
+    (moment N m, force N), is an input of ``simulate`` (``wrench=``: a constant, a law
+    of t or of (t, q, qd), or a controller's output), in the world frame or, with
+    ``local``, in the section's frame (turning with it)."""
+
+    link: int = struct.field(pytree_node=False, default=-1)
+    X: float = struct.field(pytree_node=False, default=1.0)
+    local: bool = struct.field(pytree_node=False, default=False)
+
+
+@struct.dataclass
 class Robot:
     """A serial chain of links from a fixed base, with loads and tendons.
 
     ``prescribed`` lists the indices (into q) of position-controlled DoFs;
     their motion is given to ``simulate`` and the rest is integrated.
     ``base_rotation`` (3x3, static) orients the first joint frame in the world.
+    ``wrenches``: points where ``simulate``'s ``wrench`` input acts.
+    ``distributed``: None, or a load per unit length on every soft link,
+    ``f(X, R, p, eta, t) -> (6,)`` (moment, force) per metre in the section's
+    frame, from the material coordinate X in [0, 1], the section's world
+    rotation R (3, 3) and position p (3,), its body twist eta (6,) and the time
+    (``gvsjax.loads`` has drag and uniform-force helpers). Static: a new
+    function recompiles.
     """
 
     links: tuple
@@ -255,6 +274,8 @@ class Robot:
     loads: tuple = ()
     masses: tuple = ()
     tendons: tuple = ()
+    wrenches: tuple = ()
+    distributed: Any = struct.field(pytree_node=False, default=None)
     gravity_direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
     base_rotation: tuple = struct.field(
         pytree_node=False, default=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))

@@ -33,6 +33,7 @@ def simulate(
     save_every: int = 1,
     joint_motion: Callable | None = None,
     joint_force: Any = None,
+    wrench: Any = None,
     controller: Callable | None = None,
     control_every: int | None = None,
     check_stability: bool = True,
@@ -55,8 +56,11 @@ def simulate(
     translation), or a callable of t or of (t, q, qd). Callables of (t, q, qd)
     get the full coordinate and velocity vectors and are evaluated at every
     integrator stage: continuous feedback.
+    wrench: None, (n_wrenches, 6) wrenches (moment N m, force N) at the
+    robot's ``wrenches`` points (world or section frame), or a callable of t
+    or of (t, q, qd) returning them.
     controller, control_every: a sampled feedback controller (t, q, qd) ->
-    {"tendon_force": ..., "joint_force": ...} evaluated every
+    {"tendon_force": ..., "joint_force": ..., "wrench": ...} evaluated every
     ``control_every`` integrator steps on the current state, its outputs held
     in between (zero-order hold, as a digital controller or an RL policy acts).
     q0, qd0: (n,) initial coordinates/velocities (default: rest); entries of
@@ -79,9 +83,10 @@ def simulate(
     n = robot.n_dofs
     laws = (("base_angle", base_angle, (1,), False), ("joint_motion", joint_motion, (len(robot.prescribed),), False),
             ("tendon_force", tendon_force, (1, len(robot.tendons)), True),
-            ("joint_force", joint_force, (1, len(robot.actuated)), True))
+            ("joint_force", joint_force, (1, len(robot.actuated)), True),
+            ("wrench", wrench, (6 * len(robot.wrenches),), True))
     inputs.check_call(robot, integrator, duration, dt, n_steps, save_every, laws)
-    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force)
+    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench)
     dtype = inputs.float_dtype(dtype)
     n_steps, dt = inputs.steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
@@ -91,6 +96,7 @@ def simulate(
     law = inputs.motion_law(robot, base_angle, joint_motion)
     tension_law, tension_value = inputs.tension_law(robot, tendon_force)
     force_law, force_value = inputs.joint_force_law(robot, joint_force)
+    wrench_law, wrench_value = inputs.wrench_law(robot, wrench)
     if check_stability and concrete(dt) and concrete(q0) and inputs.robot_is_concrete(robot):
         limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
         require(float(dt) <= limit, "dt", float(dt),
@@ -101,12 +107,14 @@ def simulate(
                 f"a divisor of n_steps={n_steps} (whole control periods)")
     tension_value = None if tension_value is None else tension_value.astype(dtype)
     force_value = None if force_value is None else force_value.astype(dtype)
+    wrench_value = None if wrench_value is None else wrench_value.astype(dtype)
     if dtype == np.float32:  # float64 array leaves (a traced E, say) would lift the run back to float64
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
     return _run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
-                jnp.asarray(dt, dtype=dtype), tension_value, force_value, n_steps=n_steps, save_every=save_every,
-                integrator=integrator, law=law, tension_law=tension_law, force_law=force_law, control=control)
+                jnp.asarray(dt, dtype=dtype), (tension_value, force_value, wrench_value), n_steps=n_steps,
+                save_every=save_every, integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law),
+                control=control)
 
 
 def _input(law, value):
@@ -118,9 +126,9 @@ def _input(law, value):
 
 def _held(system: FreeDynamics, held: dict) -> FreeDynamics:
     """``system`` with the controller's held outputs in place of its own inputs."""
-    tension = (lambda t, q, qd: held["tendon_force"]) if "tendon_force" in held else system.tension
-    force = (lambda t, q, qd: held["joint_force"]) if "joint_force" in held else system.joint_force
-    return FreeDynamics(system.robot, system.motion, tension, force)
+    pick = lambda key, own: (lambda t, q, qd: held[key]) if key in held else own  # noqa: E731
+    return FreeDynamics(system.robot, system.motion, pick("tendon_force", system.tension),
+                        pick("joint_force", system.joint_force), pick("wrench", system.wrench))
 
 
 def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:
@@ -128,14 +136,12 @@ def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:
     return control(t, jnp.stack(q), jnp.stack(qd))
 
 
-@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "tension_law",
-                                             "force_law", "control"))
-def _run(robot, q0, qd0, dt, tension_value, force_value, *, n_steps, save_every, integrator, law,
-         tension_law, force_law, control):
+@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "laws", "control"))
+def _run(robot, q0, qd0, dt, values, *, n_steps, save_every, integrator, law, laws, control):
     if law is None:
         held = q0[jnp.asarray(robot.prescribed, dtype=int)]
         law = lambda t: held + 0.0 * t  # noqa: E731
-    system = FreeDynamics(robot, law, _input(tension_law, tension_value), _input(force_law, force_value))
+    system = FreeDynamics(robot, law, *(_input(f, v) for f, v in zip(laws, values)))
     step = integrators.get(integrator)
     u = jnp.asarray(robot.free, dtype=int)
     qu0, qdu0 = _split(q0[u]), _split(qd0[u])
@@ -186,12 +192,12 @@ def _assemble(robot, system, t, qu, qdu, helds) -> Trajectory:
     def applied(s, x, v, h):
         sys = _held(system, h)
         qf, qdf, _ = sys.full_state(s, _split(x), _split(v))
-        tension, force = sys.inputs(s, qf, qdf)
-        as_vec = lambda xs: jnp.stack([jnp.asarray(a, qu.dtype) for a in xs]) if xs else jnp.zeros(0, qu.dtype)  # noqa: E731
-        n_j = len(robot.actuated)
-        return as_vec(tension), as_vec(force) if force else jnp.zeros(n_j, qu.dtype)
+        tension, force, wrench = sys.inputs(s, qf, qdf)
+        as_vec = lambda xs, n: jnp.asarray(jnp.stack(xs) if xs else jnp.zeros(n), qu.dtype)  # noqa: E731
+        w6 = jnp.asarray([list(w) for w in wrench], qu.dtype) if wrench else jnp.zeros((len(robot.wrenches), 6))
+        return as_vec(tension, len(robot.tendons)), as_vec(force, len(robot.actuated)), w6.astype(qu.dtype)
 
-    tension, force = jax.vmap(applied)(t, qu, qdu, helds)
+    tension, force, wrench = jax.vmap(applied)(t, qu, qdu, helds)
     tip, tip_vel = jax.vmap(lambda x, v: tip_state(robot, x, v))(q, qd)
     return Trajectory(t=t, q=q, qd=qd, tip=tip, tip_velocity=tip_vel, joint_torque=torque,
-                      tendon_force=tension, joint_force=force)
+                      tendon_force=tension, joint_force=force, wrench=wrench)

@@ -53,8 +53,9 @@ class FreeDynamics:
     """
 
     def __init__(self, robot: Robot, motion: Callable, tension: Callable | None = None,
-                 joint_force: Callable | None = None):
+                 joint_force: Callable | None = None, wrench: Callable | None = None):
         self.robot, self.motion, self.tension, self.joint_force = robot, motion, tension, joint_force
+        self.wrench = wrench
         self.a, self.u = robot.prescribed, robot.free
 
     def prescribed_state(self, t):
@@ -77,19 +78,23 @@ class FreeDynamics:
             q[i], qd[i] = q_u[k], qd_u[k]
         return q, qd, qdda
 
-    def inputs(self, t, q, qd) -> tuple[list, list]:
-        """(tendon tensions, joint forces) as lists of scalars at (t, q, qd)."""
-        n_t, n_j = len(self.robot.tendons), len(self.robot.actuated)
-        need = (self.tension is not None and n_t) or (self.joint_force is not None and n_j)
-        qv, qdv = (_vector(q), _vector(qd)) if need else (None, None)
+    def inputs(self, t, q, qd) -> tuple[list, list, list]:
+        """(tendon tensions, joint forces, wrenches) at (t, q, qd): lists of scalars, and of
+        6-tuples for the wrenches; empty where no input is given."""
+        n_t, n_j, n_w = len(self.robot.tendons), len(self.robot.actuated), len(self.robot.wrenches)
+        given = [(law, n) for law, n in ((self.tension, n_t), (self.joint_force, n_j), (self.wrench, n_w))
+                 if law is not None and n]
+        qv, qdv = (_vector(q), _vector(qd)) if given else (None, None)
         T = self.tension(t, qv, qdv) if self.tension is not None and n_t else jnp.zeros(n_t)
         f = self.joint_force(t, qv, qdv) if self.joint_force is not None and n_j else None
-        return [T[i] for i in range(n_t)], ([] if f is None else [f[i] for i in range(n_j)])
+        w = jnp.reshape(self.wrench(t, qv, qdv), (n_w, 6)) if self.wrench is not None and n_w else None
+        return ([T[i] for i in range(n_t)], [] if f is None else [f[i] for i in range(n_j)],
+                [] if w is None else [tuple(w[i, k] for k in range(6)) for i in range(n_w)])
 
     def _mf(self, t, q_u, qd_u):
         q, qd, qdda = self.full_state(t, q_u, qd_u)
-        tension, force = self.inputs(t, q, qd)
-        M, F = dynamics.mass_and_forces(self.robot, q, qd, tension, force)
+        tension, force, wrench = self.inputs(t, q, qd)
+        M, F = dynamics.mass_and_forces(self.robot, q, qd, tension, force, wrench, t)
         return q, qd, qdda, M, F
 
     def accel(self, t, q_u, qd_u):

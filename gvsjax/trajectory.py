@@ -13,8 +13,8 @@ class Trajectory:
     t (m,), q (m, n), qd (m, n), tip (m, 3) world tip position, tip_velocity
     (m, 3), joint_torque (m, n_prescribed): the effort the prescribed joints
     exert (by inverse dynamics), N m for revolute joints; tendon_force
-    (m, n_tendons) and joint_force (m, n_actuated): the inputs applied (zeros
-    where none is given). ``m = n_steps / save_every + 1``.
+    (m, n_tendons), joint_force (m, n_actuated) and wrench (m, n_wrenches, 6):
+    the inputs applied (zeros where none is given). ``m = n_steps / save_every + 1``.
     """
 
     t: jax.Array
@@ -25,3 +25,4 @@ class Trajectory:
     joint_torque: jax.Array
     tendon_force: jax.Array
     joint_force: jax.Array
+    wrench: jax.Array

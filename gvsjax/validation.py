@@ -108,6 +108,11 @@ def check_robot(robot) -> None:
         finite(f"loads[{k}].magnitude", load.magnitude)
         require(-n <= load.link < n, f"loads[{k}].link", load.link, f"a link index in [-{n}, {n})")
         require(0.0 <= load.X <= 1.0, f"loads[{k}].X", load.X, "a material coordinate in [0, 1]")
+    for k, site in enumerate(robot.wrenches):
+        require(-n <= site.link < n, f"wrenches[{k}].link", site.link, f"a link index in [-{n}, {n})")
+        require(0.0 <= site.X <= 1.0, f"wrenches[{k}].X", site.X, "a material coordinate in [0, 1]")
+    require(robot.distributed is None or callable(robot.distributed), "distributed", robot.distributed,
+            "None or a callable (X, R, p, eta, t) -> (6,) per-metre wrench")
     for k, pm in enumerate(robot.masses):
         nonnegative(f"masses[{k}].mass", pm.mass)
         require(-n <= pm.link < n, f"masses[{k}].link", pm.link, f"a link index in [-{n}, {n})")

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1] / "gvsjax"
 LAYERS = {
     "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding"]),
     "lie": (1, ["gvsjax.lie"]),
-    "model": (2, ["gvsjax.model", "gvsjax.robots", "gvsjax.validation"]),
+    "model": (2, ["gvsjax.model", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
     "kinematics": (3, ["gvsjax.kinematics"]),
     "dynamics": (4, ["gvsjax.dynamics"]),
     "integrators": (5, ["gvsjax.integrators"]),
