@@ -51,6 +51,7 @@ from gvsjax.model import (  # noqa: E402
     Material,
     PointLoad,
     PointMass,
+    PointWrench,
     RigidLink,
     Robot,
     SoftLink,
@@ -60,11 +61,12 @@ from gvsjax.model import (  # noqa: E402
 from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
 from gvsjax.simulation import simulate  # noqa: E402
 from gvsjax.stability import stable_step_estimate  # noqa: E402
+from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
 from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
-    "Joint", "Material", "PointLoad", "PointMass", "RigidLink", "Robot", "SoftLink", "StrainBasis",
+    "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
     "Tendon", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory", "stable_step_estimate",
     "backbone", "frames", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
-    "stiffness_and_damping",
+    "stiffness_and_damping", "equilibrium", "inverse_statics",
 ]

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import Point, coords, forward, grid_of, scaled_columns, strain
+from gvsjax.kinematics import Point, coords, forward, grid_of, rest_strain, scaled_columns, strain
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale
 from gvsjax.model import RigidLink, Robot, SoftLink
 
@@ -34,56 +34,101 @@ from gvsjax.model import RigidLink, Robot, SoftLink
 class Section:
     """Per-unit-length diagonals (6 entries each, twist order)."""
 
-    inertia: tuple  # rho * (J, I, I, A, A, A)
-    stiffness: tuple  # (G J, E I, E I, E A, G A, G A)
-    damping: tuple  # eta * factors * (J, I, I, A, A, A)
+    inertia: tuple  # rho * (Ip, Iy, Iz, A, A, A)
+    stiffness: tuple  # (G Jt, E Iy, E Iz, E A, G A, G A)
+    damping: tuple  # eta * factors * (Jt, Iy, Iz, A, A, A)
 
 
-def section(link: SoftLink) -> Section:
-    r = link.radius
-    area = math.pi * r * r
-    second = math.pi * r**4 / 4.0
-    geo = (2.0 * second, second, second, area, area, area)
+def _geometry(link: SoftLink, scale) -> tuple[tuple, tuple]:
+    """(Ip, Iy, Iz, A, A, A) for inertia and (Jt, Iy, Iz, A, A, A) for stiffness, dimensions
+    multiplied by ``scale``. Jt is Saint-Venant's torsion constant: the polar moment for a
+    circle, pi a^3 b^3 / (a^2 + b^2) for an ellipse, Roark's series for a rectangle."""
+    if link.shape == "circle":
+        r = link.radius * scale
+        area, second = math.pi * r * r, math.pi * r**4 / 4.0
+        geo = (2.0 * second, second, second, area, area, area)
+        return geo, geo
+    w, h = link.width * scale, link.height * scale
+    if link.shape == "ellipse":
+        a, b = w / 2.0, h / 2.0
+        area, iy, iz = math.pi * a * b, math.pi * a * b**3 / 4.0, math.pi * a**3 * b / 4.0
+        jt = math.pi * a**3 * b**3 / (a * a + b * b)
+    else:
+        area, iy, iz = w * h, w * h**3 / 12.0, h * w**3 / 12.0
+        long, short = jnp.maximum(w, h), jnp.minimum(w, h)
+        r = short / long
+        jt = long * short**3 * (1.0 / 3.0 - 0.21 * r * (1.0 - r**4 / 12.0))
+    return (iy + iz, iy, iz, area, area, area), (jt, iy, iz, area, area, area)
+
+
+def section(link: SoftLink, X: float = 0.0) -> Section:
+    """The section's diagonals at material coordinate X (the base's when untapered)."""
+    scale = 1.0 if _uniform(link) else 1.0 + (link.taper - 1.0) * X
+    geo_m, geo_k = _geometry(link, scale)
     mat = link.material
     shear = mat.youngs_modulus / (2.0 * (1.0 + mat.poisson))
     stiff = (shear, mat.youngs_modulus, mat.youngs_modulus) + (mat.youngs_modulus, shear, shear)
     return Section(
-        inertia=tuple(mat.density * g for g in geo),
-        stiffness=tuple(s * g for s, g in zip(stiff, geo)),
-        damping=tuple(mat.damping * f * g for f, g in zip(link.damping_factors, geo)),
+        inertia=tuple(mat.density * g for g in geo_m),
+        stiffness=tuple(s * g for s, g in zip(stiff, geo_k)),
+        damping=tuple(mat.damping * f * g for f, g in zip(link.damping_factors, geo_k)),
     )
 
 
-def _weighted_gram(robot: Robot, li: int, per_component: Sequence) -> list[list]:
-    """sum_i W_i Phi_i^T diag(c) Phi_i for a soft link (n_s x n_s, scalar algebra)."""
+def _uniform(link: SoftLink) -> bool:
+    """True when the section is the same all along (a taper of exactly 1, known at trace time)."""
+    return isinstance(link.taper, (int, float)) and link.taper == 1
+
+
+def _weighted_gram(robot: Robot, li: int, per_component) -> list[list]:
+    """sum_i W_i Phi_i^T diag(c(X_i)) Phi_i for a soft link (n_s x n_s, scalar algebra).
+
+    ``per_component(X)`` gives the six diagonal entries at X; a uniform link takes them once.
+    """
     link = robot.links[li]
     grid = grid_of(robot, li)
     L = link.length
     n = grid.phi.shape[2]
     scale = [1.0 / (L * L) if c < 3 else 1.0 for c in range(6)]  # SoRoSim 1/L on angular rows
     out = [[0] * n for _ in range(n)]
-    for c in range(6):
-        gram = np.einsum("i,ij,ik->jk", grid.w, grid.phi[:, c, :], grid.phi[:, c, :])
-        if not np.any(gram):
-            continue
-        coef = mul(mul(per_component[c], L), scale[c])
-        for j in range(n):
-            for k in range(n):
-                out[j][k] = add(out[j][k], mul(coef, const(gram[j, k])))
+    points = [0.0] if _uniform(link) else [float(x) for x, w in zip(grid.X, grid.w) if w > 0]
+    weights = [grid.w] if _uniform(link) else [np.where(grid.X == x, grid.w, 0.0) for x in points]
+    for x, w in zip(points, weights):
+        diag = per_component(x)
+        for c in range(6):
+            gram = np.einsum("i,ij,ik->jk", w, grid.phi[:, c, :], grid.phi[:, c, :])
+            if not np.any(gram):
+                continue
+            coef = mul(mul(diag[c], L), scale[c])
+            for j in range(n):
+                for k in range(n):
+                    out[j][k] = add(out[j][k], mul(coef, const(gram[j, k])))
     return out
 
 
+def _per_dof(value, k: int):
+    """Entry k of a per-joint-DoF parameter given as a scalar (the same for each) or a sequence;
+    a Python 0 stays a structural zero (no term is traced for a joint without spring or damper)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return 0 if value == 0 else value
+    v = jnp.asarray(value)
+    return v if v.ndim == 0 else v[k]
+
+
 def stiffness_and_damping(robot: Robot) -> tuple[list[list], list[list]]:
-    """K and D (n x n, scalar algebra): sum_i W_i Phi_i^T Sigma Phi_i, likewise for D."""
+    """K and D (n x n, scalar algebra): sum_i W_i Phi_i^T Sigma Phi_i for the soft DoFs, likewise
+    for D; the links' ``joint_stiffness``/``joint_damping`` on the joint DoFs' diagonal."""
     n = robot.n_dofs
     K = [[0] * n for _ in range(n)]
     D = [[0] * n for _ in range(n)]
-    for li, (link, (_, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+    for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        for big, value in ((K, link.joint_stiffness), (D, link.joint_damping)):
+            for k in range(s0 - j0):
+                big[j0 + k][j0 + k] = _per_dof(value, k)
         if not isinstance(link, SoftLink) or end == s0:
             continue
-        sec = section(link)
-        for big, diag in ((K, sec.stiffness), (D, sec.damping)):
-            block = _weighted_gram(robot, li, diag)
+        for big, part in ((K, "stiffness"), (D, "damping")):
+            block = _weighted_gram(robot, li, lambda x, link=link, part=part: getattr(section(link, x), part))
             for j in range(end - s0):
                 for k in range(end - s0):
                     big[s0 + j][s0 + k] = block[j][k]
@@ -144,7 +189,7 @@ def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
             if grid.w[i] == 0.0:
                 continue
             cols = scaled_columns(grid.phi[i], inv_L)
-            xi = strain(cols, q[s0:end])
+            xi = strain(cols, q[s0:end], rest_strain(link, float(grid.X[i])))
             t_raw = vadd(lie.cross(xi[:3], d), xi[3:])
             inv_norm = 1.0 / jnp.sqrt(lie.as_array(dot(t_raw, t_raw)))
             t = vscale(inv_norm, t_raw)
@@ -155,12 +200,32 @@ def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
     return tau
 
 
+def _distributed(robot: Robot, pt: Point, t) -> tuple:
+    """The distributed load at a soft sample point, per metre, in the section's frame."""
+    R = jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R])
+    p = jnp.stack([lie.as_array(a) for a in pt.p])
+    eta = jnp.stack([lie.as_array(a) for a in pt.eta])
+    w = jnp.reshape(robot.distributed(pt.X, R, p, eta, t), (6,))
+    return tuple(w[k] for k in range(6))
+
+
+def _add_wrench(F, pt: Point, wrench: Sequence, local: bool, weight=1.0) -> None:
+    """F += weight J^T w, w = (moment, force) given in the section's frame or the world's."""
+    w = tuple(wrench) if local else lie.matTvec(pt.R, tuple(wrench[:3])) + lie.matTvec(pt.R, tuple(wrench[3:]))
+    for j in range(len(F)):
+        F[j] = add(F[j], mul(weight, dot(pt.J[j], w)))
+
+
 def mass_and_forces(
-    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = ()
+    robot: Robot, q: Sequence, qd: Sequence, tension: Sequence = (), joint_force: Sequence = (),
+    wrench: Sequence = (), t=0.0,
 ) -> tuple[list[list], list]:
     """M (lower triangle filled, scalar algebra) and F with every force included.
 
-    q, qd: n scalars each; tension: one value per tendon (N, >= 0).
+    q, qd: n scalars each; tension: one value per tendon (N, >= 0); joint_force:
+    one generalized force per ``robot.actuated`` coordinate (N m or N), or empty;
+    wrench: one 6-vector (moment, force) per ``robot.wrenches`` entry, or empty;
+    t: the time the distributed load is evaluated at.
     """
     n = robot.n_dofs
     points = forward(robot, q, qd, with_psi=True)
@@ -171,12 +236,18 @@ def mass_and_forces(
     for pt in points:
         link = robot.links[pt.link]
         if pt.kind == "soft" and not lie.is_zero(pt.weight):
-            _add_body(M, F, pt, section(link).inertia, pt.weight, g_world)
+            _add_body(M, F, pt, section(link, pt.X).inertia, pt.weight, g_world)
         elif pt.kind == "rigid":
             _add_body(M, F, pt, _rigid_inertia(link), 1.0, g_world)
     for pm in robot.masses:
         pt = _point_of(points, pm.link, pm.X, n_links)
         _add_body(M, F, pt, (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0, g_world)
+    if robot.distributed is not None:
+        for pt in points:
+            if pt.kind == "soft" and not lie.is_zero(pt.weight):
+                _add_wrench(F, pt, _distributed(robot, pt, t), True, pt.weight)
+    for site, w in zip(robot.wrenches, wrench):
+        _add_wrench(F, _point_of(points, site.link, site.X, n_links), w, site.local)
     for load in robot.loads:
         pt = _point_of(points, load.link, load.X, n_links)
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
@@ -186,6 +257,8 @@ def mass_and_forces(
             F[j] = add(F[j], dot(pt.J[j], wrench))
     K, D = stiffness_and_damping(robot)
     tau = _tendon_force(robot, q, tension) if robot.tendons else [0] * n
+    for i, f in zip(robot.actuated, joint_force):
+        tau[i] = add(tau[i], f)
     for j in range(n):
         elastic = total([mul(K[j][k], q[k]) for k in range(n)] + [mul(D[j][k], qd[k]) for k in range(n)])
         F[j] = add(sub(F[j], elastic), tau[j])
@@ -242,7 +315,7 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     for pt in points:
         link = robot.links[pt.link]
         if pt.kind == "soft" and not lie.is_zero(pt.weight):
-            body(pt, section(link).inertia, pt.weight)
+            body(pt, section(link, pt.X).inertia, pt.weight)
         elif pt.kind == "rigid":
             body(pt, _rigid_inertia(link), 1.0)
     for pm in robot.masses:

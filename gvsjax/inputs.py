@@ -7,7 +7,10 @@ duration, say); shape checks always run.
 
 from __future__ import annotations
 
+import inspect
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -20,8 +23,27 @@ from gvsjax.system import Law
 from gvsjax.validation import concrete, require
 
 
+def takes_state(name: str, fn) -> bool:
+    """True for a law of ``(t, q, qd)``, False for one of ``t``; else a ValueError naming ``name``."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):  # a builtin or C callable: taken as a law of t
+        return False
+    kinds = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    needed = [p for p in sig.parameters.values() if p.kind in kinds and p.default is p.empty]
+    variadic = any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in sig.parameters.values())
+    if len(needed) == 3:
+        return True
+    require(len(needed) == 1 or (variadic and not needed), name, fn,
+            "a callable of t, or of (t, q, qd) with the full coordinate and velocity vectors")
+    return False
+
+
 def check_call(robot: Robot, integrator, duration, dt, n_steps, save_every, laws) -> None:
-    """Types and shapes of the scalar arguments and the output size of each law."""
+    """Types and shapes of the scalar arguments and the output size of each law.
+
+    ``laws``: (name, value, allowed output sizes, may depend on the state) tuples.
+    """
     require(isinstance(integrator, str), "integrator", integrator, f"one of {sorted(integrators.INTEGRATORS)}")
     integrators.get(integrator)
     for name, value in (("duration", duration), ("dt", dt)):
@@ -30,12 +52,18 @@ def check_call(robot: Robot, integrator, duration, dt, n_steps, save_every, laws
                     and np.issubdtype(np.asarray(value).dtype, np.number), name, value, "a scalar time (s)")
     for name, value in (("n_steps", n_steps), ("save_every", save_every)):
         require(value is None or not isinstance(value, (bool, np.bool_)), name, value, "an int >= 1")
-    for name, fn, sizes in laws:
+    f64 = jax.dtypes.canonicalize_dtype(jnp.float64)
+    t = jax.ShapeDtypeStruct((), f64)
+    x = jax.ShapeDtypeStruct((robot.n_dofs,), f64)
+    for name, fn, sizes, state_ok in laws:
         if callable(fn):  # abstract evaluation only: catches a wrong output shape without compiling
-            out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), jax.dtypes.canonicalize_dtype(jnp.float64)))
+            state = takes_state(name, fn)
+            require(state_ok or not state, name, fn, "a callable of t only (a prescribed motion cannot "
+                    "depend on the state it prescribes)")
+            out = jax.eval_shape(fn, t, x, x) if state else jax.eval_shape(fn, t)
             size = math.prod(out.shape) if hasattr(out, "shape") else None
             allowed = " or ".join(map(str, sorted(set(sizes))))
-            require(size in sizes, name, fn, f"a callable t -> {allowed} value(s); "
+            require(size in sizes, name, fn, f"a callable returning {allowed} value(s); "
                     f"it returns shape {getattr(out, 'shape', type(out).__name__)}")
 
 
@@ -54,24 +82,87 @@ def motion_law(robot: Robot, base_angle, joint_motion) -> Law | None:
     return None
 
 
-def tension_law(robot: Robot, tendon_force) -> tuple[Law | None, Any]:
-    """(callable law or None, constant tension array or None)."""
-    if tendon_force is None:
+def input_law(name: str, value, size: int, what: str, nonnegative: bool) -> tuple[Law | None, Any]:
+    """An input given as None, a constant or a callable: (callable law or None, constant array or None).
+
+    ``size`` inputs exist (tendons, actuated joint coordinates); ``what`` names them in errors.
+    """
+    if value is None:
         return None, None
-    require(bool(robot.tendons), "tendon_force", tendon_force, "None: this robot has no tendon")
-    if callable(tendon_force):
-        return Law(tendon_force, len(robot.tendons)), None
-    if concrete(tendon_force):
-        try:  # numpy would read the string "0" as 0.0: text is not a tension
-            ok = (not isinstance(tendon_force, (str, bytes))
-                  and np.issubdtype(np.asarray(tendon_force).dtype, np.number))
-            value = np.asarray(tendon_force, dtype=float)
+    require(size > 0, name, value, f"None: this robot has no {what}")
+    if callable(value):
+        return Law(value, size, takes_state(name, value)), None
+    allowed = f"a finite {'value >= 0' if nonnegative else 'value'} (one per {what[:-1]}), or a callable"
+    if concrete(value):
+        try:  # numpy would read the string "0" as 0.0: text is not a number here
+            ok = not isinstance(value, (str, bytes)) and np.issubdtype(np.asarray(value).dtype, np.number)
+            arr = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
             ok = False
-        require(ok, "tendon_force", tendon_force, "a tension >= 0 N (one per tendon), or a callable")
-        require(value.shape in ((), (len(robot.tendons),)) and np.all(np.isfinite(value)) and np.all(value >= 0),
-                "tendon_force", tendon_force, "a finite tension >= 0 N (one per tendon), or a callable")
-    return None, jnp.broadcast_to(jnp.asarray(tendon_force, dtype=float), (len(robot.tendons),))
+        require(ok, name, value, allowed)
+        require(arr.shape in ((), (size,)) and bool(np.all(np.isfinite(arr)))
+                and (not nonnegative or bool(np.all(arr >= 0))), name, value, allowed)
+    return None, jnp.broadcast_to(jnp.asarray(value, dtype=float), (size,))
+
+
+def tension_law(robot: Robot, tendon_force) -> tuple[Law | None, Any]:
+    """Tendon tensions (N, >= 0): (callable law or None, constant array or None)."""
+    return input_law("tendon_force", tendon_force, len(robot.tendons), "tendons", True)
+
+
+def wrench_law(robot: Robot, wrench) -> tuple[Law | None, Any]:
+    """Wrenches (moment, force) at ``robot.wrenches``, (n, 6) or flattened: (law or None, constant or None)."""
+    n = len(robot.wrenches)
+    if wrench is not None and not callable(wrench) and concrete(wrench) and np.shape(wrench) == (n, 6):
+        wrench = np.reshape(np.asarray(wrench, dtype=float), (6 * n,))
+    return input_law("wrench", wrench, 6 * n, "wrench points", False)
+
+
+def joint_force_law(robot: Robot, joint_force) -> tuple[Law | None, Any]:
+    """Forces on the actuated joint coordinates: (callable law or None, constant array or None)."""
+    return input_law("joint_force", joint_force, len(robot.actuated), "actuated joints", False)
+
+
+@dataclass(frozen=True)
+class Controller:
+    """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,), "wrench": (n_w, 6)}``
+    sampled every ``every`` integrator steps and held in between (zero-order hold).
+
+    Hashed by the function's identity (the compiled program is reused)."""
+
+    fn: Callable
+    every: int
+    keys: tuple[str, ...]
+
+    def __call__(self, t, q, qd) -> dict:
+        out = self.fn(t, q, qd)
+        return {k: jnp.reshape(jnp.asarray(out[k]).astype(jnp.result_type(t)), (-1,)) for k in self.keys}
+
+
+CONTROL_KEYS = ("tendon_force", "joint_force", "wrench")
+
+
+def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None) -> Controller | None:
+    """The checked zero-order-hold controller, or None."""
+    if fn is None:
+        require(every is None, "control_every", every, "None without a controller")
+        return None
+    require(callable(fn), "controller", fn, "a callable (t, q, qd) -> dict of inputs")
+    require(isinstance(every, (int, np.integer)) and not isinstance(every, bool) and every >= 1,
+            "control_every", every, "an int >= 1: integrator steps per control update")
+    f64 = jax.dtypes.canonicalize_dtype(jnp.float64)
+    x = jax.ShapeDtypeStruct((robot.n_dofs,), f64)
+    out = jax.eval_shape(fn, jax.ShapeDtypeStruct((), f64), x, x)
+    require(isinstance(out, dict) and bool(out) and set(out) <= set(CONTROL_KEYS), "controller", fn,
+            f"a callable returning a dict with keys among {list(CONTROL_KEYS)}")
+    sizes = {"tendon_force": len(robot.tendons), "joint_force": len(robot.actuated),
+             "wrench": 6 * len(robot.wrenches)}
+    for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force), ("wrench", wrench)):
+        if key in out:
+            require(given is None, key, given, "None when the controller sets it")
+            require(math.prod(out[key].shape) == sizes[key] > 0, "controller", fn,
+                    f"{key} of {sizes[key]} value(s); it returns shape {out[key].shape}")
+    return Controller(fn, int(every), tuple(k for k in CONTROL_KEYS if k in out))
 
 
 def steps(duration, dt, n_steps) -> tuple[int, Any]:

@@ -28,6 +28,7 @@ from gvsjax.lie import const, mul, vadd, vscale, zeros
 from gvsjax.model import RigidLink, Robot, SoftLink, StrainBasis
 
 XI_STAR = (0, 0, 0, 1.0, 0, 0)  # straight, unstretched, unsheared reference strain
+ZANNA = (0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6)  # Gauss collocation points of a Magnus step
 
 
 # ----------------------------------------------------------------------------
@@ -64,7 +65,7 @@ def link_grid(basis: StrainBasis, n_gauss: int, extra: tuple[float, ...] = ()) -
     X = np.array(sorted(pts))
     w = np.array([pts[x] for x in X])
     dX = np.diff(X)
-    c1, c2 = 0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6
+    c1, c2 = ZANNA
     phi = np.stack([basis.raw(x) for x in X])
     phi1 = np.stack([basis.raw(a + c1 * d) for a, d in zip(X[:-1], dX)])
     phi2 = np.stack([basis.raw(a + c2 * d) for a, d in zip(X[:-1], dX)])
@@ -75,7 +76,7 @@ def extra_points(robot: Robot, link_index: int) -> tuple[float, ...]:
     """Material points of a link where a load or mass acts (sampled exactly)."""
     n = len(robot.links)
     return tuple(
-        sorted({float(m.X) for m in (*robot.loads, *robot.masses) if m.link % n == link_index})
+        sorted({float(m.X) for m in (*robot.loads, *robot.masses, *robot.wrenches) if m.link % n == link_index})
     )
 
 
@@ -92,9 +93,20 @@ def scaled_columns(raw: np.ndarray, inv_length) -> list[tuple]:
     ]
 
 
-def strain(cols: Sequence[tuple], q: Sequence) -> tuple:
+def rest_strain(link: SoftLink, X: float) -> tuple:
+    """xi*(X) of a soft link (see ``SoftLink.rest_strain``)."""
+    if link.rest_strain is None:
+        return XI_STAR
+    c = jnp.asarray(link.rest_strain)
+    if c.ndim == 1:
+        return tuple(c[r] for r in range(6))
+    powers = jnp.asarray([X**j for j in range(c.shape[1])], c.dtype)
+    return tuple(c[r] @ powers for r in range(6))
+
+
+def strain(cols: Sequence[tuple], q: Sequence, rest: tuple = XI_STAR) -> tuple:
     """xi = Phi q + xi*."""
-    out = XI_STAR
+    out = rest
     for col, qk in zip(cols, q):
         out = vadd(out, vscale(qk, col))
     return out
@@ -155,13 +167,13 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
     state = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
     points: list[Point] = []
     for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
-        if link.joint.n_dofs:
-            phi_j = tuple(const(a) for a in link.joint.twist_basis())
-            O = vscale(q[j0], phi_j)
-            Od = vscale(qd[j0], phi_j)
+        for k, twist in enumerate(link.joint.twists()):
+            phi_j = tuple(const(a) for a in twist)
+            O = vscale(q[j0 + k], phi_j)
+            Od = vscale(qd[j0 + k], phi_j)
             R_s, p_s = lie.exp_se3(O)
-            # single-DoF joint: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
-            state = _advance(state, R_s, p_s, [phi_j], [j0], Od, zeros(6), with_psi)
+            # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
+            state = _advance(state, R_s, p_s, [phi_j], [j0 + k], Od, zeros(6), with_psi)
         if isinstance(link, SoftLink):
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
         else:
@@ -186,7 +198,8 @@ def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         half_h = mul(0.5, h)
         P1 = scaled_columns(grid.phi1[i], inv_L)
         P2 = scaled_columns(grid.phi2[i], inv_L)
-        xi1, xi2 = strain(P1, qs), strain(P2, qs)
+        x1, x2 = grid.X[i] + ZANNA[0] * grid.dX[i], grid.X[i] + ZANNA[1] * grid.dX[i]
+        xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
         xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
         # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
         O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))

@@ -22,38 +22,63 @@ from flax import struct
 STRAIN_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
 
 
+_X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+JOINT_KINDS = ("revolute", "prismatic", "fixed", "universal", "spherical", "planar", "free")
+
+
 @dataclass(frozen=True)
 class Joint:
-    """A joint at the base of a link.
+    """A joint at the base of a link, as a product of single-axis motions.
 
-    kind: "revolute" (rotation about ``axis``), "prismatic" (translation along
-    ``axis``) or "fixed" (no DoF). ``axis`` is a unit 3-vector in the parent's
-    frame at the joint.
+    kind (DoFs, in the order of q):
+    "revolute" (1: rotation about ``axis``), "prismatic" (1: translation along
+    ``axis``), "fixed" (0), "universal" (2: rotation about ``axis``, then about
+    ``axis2`` of the turned frame), "spherical" (3: rotations about x, y, z in
+    turn, body-fixed XYZ angles), "planar" (3: translations along x and y, then
+    a rotation about z), "free" (6: translations along x, y, z, then rotations
+    about x, y, z; a floating base). Axes are unit 3-vectors in the parent's
+    frame at the joint. Each single-axis motion is an exact exponential, so the
+    recursion treats a multi-DoF joint as a chain of one-DoF joints with no
+    length between them; the angle sets are singular where Euler angles are
+    (e.g. the middle spherical angle at +-pi/2).
     """
 
     kind: str = "revolute"
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    axis2: tuple[float, float, float] = (0.0, 1.0, 0.0)
 
     def __post_init__(self):
-        if self.kind not in ("revolute", "prismatic", "fixed"):
-            raise ValueError(
-                f"Joint.kind={self.kind!r} is not allowed; choose revolute, prismatic or fixed"
-            )
-        n = math.sqrt(sum(a * a for a in self.axis))
-        if len(self.axis) != 3 or not abs(n - 1.0) < 1e-9:
-            raise ValueError(f"Joint.axis={self.axis!r} must be a unit 3-vector")
+        if self.kind not in JOINT_KINDS:
+            raise ValueError(f"Joint.kind={self.kind!r} is not allowed; choose one of {', '.join(JOINT_KINDS)}")
+        for name in ("axis", "axis2"):
+            v = getattr(self, name)
+            if len(v) != 3 or not abs(math.sqrt(sum(a * a for a in v)) - 1.0) < 1e-9:
+                raise ValueError(f"Joint.{name}={v!r} must be a unit 3-vector")
 
     @property
     def n_dofs(self) -> int:
-        return 0 if self.kind == "fixed" else 1
+        return len(self.twists())
+
+    def twists(self) -> tuple[tuple[float, ...], ...]:
+        """The joint's twist per unit coordinate, one 6-vector per DoF, applied in order."""
+        rot = lambda a: tuple(a) + (0.0, 0.0, 0.0)  # noqa: E731
+        lin = lambda a: (0.0, 0.0, 0.0) + tuple(a)  # noqa: E731
+        return {
+            "revolute": (rot(self.axis),),
+            "prismatic": (lin(self.axis),),
+            "fixed": (),
+            "universal": (rot(self.axis), rot(self.axis2)),
+            "spherical": (rot(_X), rot(_Y), rot(_Z)),
+            "planar": (lin(_X), lin(_Y), rot(_Z)),
+            "free": (lin(_X), lin(_Y), lin(_Z), rot(_X), rot(_Y), rot(_Z)),
+        }[self.kind]
 
     def twist_basis(self) -> tuple[float, ...]:
-        """Phi_j: the joint twist per unit joint coordinate."""
-        if self.kind == "revolute":
-            return tuple(self.axis) + (0.0, 0.0, 0.0)
-        if self.kind == "prismatic":
-            return (0.0, 0.0, 0.0) + tuple(self.axis)
-        return (0.0,) * 6
+        """Phi_j of a one-DoF joint (zeros for a fixed one)."""
+        tw = self.twists()
+        if len(tw) > 1:
+            raise ValueError(f"Joint.kind={self.kind!r} has {len(tw)} DoFs: use twists()")
+        return tw[0] if tw else (0.0,) * 6
 
 
 @dataclass(frozen=True)
@@ -118,9 +143,22 @@ class Material:
     poisson: Any = 0.5
 
 
+SECTION_SHAPES = ("circle", "ellipse", "rectangle")
+
+
 @struct.dataclass
 class SoftLink:
-    """A Cosserat rod of circular section, straight and unstretched at rest.
+    """A Cosserat rod: its section, material, strain basis and rest shape.
+
+    Section (``shape``): "circle" of ``radius``; "ellipse" with semi-axes
+    ``width``/2 along the local y and ``height``/2 along z; "rectangle"
+    ``width`` (y) by ``height`` (z). ``taper`` scales every dimension linearly
+    from 1 at the base (X = 0) to ``taper`` at the tip (X = 1). The rest shape
+    is the reference strain xi*(X) (``rest_strain``): None is straight and
+    unstretched, (0, 0, 0, 1, 0, 0); a (6,) array is a constant one (a
+    pre-curved arc, a pre-twisted rod); a (6, k) array holds the coefficients
+    of a polynomial in X, column j multiplying X^j. Its angular rows are in
+    1/m, its linear rows dimensionless. q measures the strain from xi*.
 
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
     by default (SoRoSim's convention); ``damping_factors`` scales each entry
@@ -130,10 +168,17 @@ class SoftLink:
     length: Any = 1.0
     radius: Any = 0.05
     material: Material = Material()
+    width: Any = 0.1  # m, "ellipse" and "rectangle": extent along the section's y axis
+    height: Any = 0.1  # m, extent along z
+    taper: Any = 1.0  # tip-to-base ratio of every section dimension
+    rest_strain: Any = None
+    shape: str = struct.field(pytree_node=False, default="circle")
     basis: StrainBasis = struct.field(pytree_node=False, default=StrainBasis())
     joint: Joint = struct.field(pytree_node=False, default=Joint())
     n_gauss: int = struct.field(pytree_node=False, default=5)
     damping_factors: tuple = struct.field(pytree_node=False, default=(1.0, 3.0, 3.0, 3.0, 1.0, 1.0))
+    joint_stiffness: Any = 0.0  # N m/rad or N/m, per joint DoF (a scalar applies to each)
+    joint_damping: Any = 0.0  # N m s/rad or N s/m, per joint DoF
 
     @property
     def n_dofs(self) -> int:
@@ -151,6 +196,8 @@ class RigidLink:
     com: Any = (0.0, 0.0, 0.0)
     length: Any = 0.0
     joint: Joint = struct.field(pytree_node=False, default=Joint())
+    joint_stiffness: Any = 0.0  # N m/rad or N/m, per joint DoF (a scalar applies to each)
+    joint_damping: Any = 0.0  # N m s/rad or N s/m, per joint DoF
 
     @property
     def n_dofs(self) -> int:
@@ -195,12 +242,31 @@ class Tendon:
 
 
 @struct.dataclass
+class PointWrench:
+    """Where a 6-D wrench input acts: material point ``X`` of ``link``. Its value,
+    (moment N m, force N), is an input of ``simulate`` (``wrench=``: a constant, a law
+    of t or of (t, q, qd), or a controller's output), in the world frame or, with
+    ``local``, in the section's frame (turning with it)."""
+
+    link: int = struct.field(pytree_node=False, default=-1)
+    X: float = struct.field(pytree_node=False, default=1.0)
+    local: bool = struct.field(pytree_node=False, default=False)
+
+
+@struct.dataclass
 class Robot:
     """A serial chain of links from a fixed base, with loads and tendons.
 
     ``prescribed`` lists the indices (into q) of position-controlled DoFs;
     their motion is given to ``simulate`` and the rest is integrated.
     ``base_rotation`` (3x3, static) orients the first joint frame in the world.
+    ``wrenches``: points where ``simulate``'s ``wrench`` input acts.
+    ``distributed``: None, or a load per unit length on every soft link,
+    ``f(X, R, p, eta, t) -> (6,)`` (moment, force) per metre in the section's
+    frame, from the material coordinate X in [0, 1], the section's world
+    rotation R (3, 3) and position p (3,), its body twist eta (6,) and the time
+    (``gvsjax.loads`` has drag and uniform-force helpers). Static: a new
+    function recompiles.
     """
 
     links: tuple
@@ -208,6 +274,8 @@ class Robot:
     loads: tuple = ()
     masses: tuple = ()
     tendons: tuple = ()
+    wrenches: tuple = ()
+    distributed: Any = struct.field(pytree_node=False, default=None)
     gravity_direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
     base_rotation: tuple = struct.field(
         pytree_node=False, default=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -231,3 +299,14 @@ class Robot:
     @property
     def free(self) -> tuple[int, ...]:
         return tuple(i for i in range(self.n_dofs) if i not in self.prescribed)
+
+    @property
+    def joint_dofs(self) -> tuple[int, ...]:
+        """Indices into q of every joint coordinate, base to tip."""
+        return tuple(i for j0, s0, _ in self.dof_slices() for i in range(j0, s0))
+
+    @property
+    def actuated(self) -> tuple[int, ...]:
+        """The joint coordinates that are not prescribed, in q order: where ``simulate``'s
+        ``joint_force`` acts (N m on a rotation, N on a translation)."""
+        return tuple(i for i in self.joint_dofs if i not in self.prescribed)

@@ -32,6 +32,10 @@ def simulate(
     integrator: str = "rk4",
     save_every: int = 1,
     joint_motion: Callable | None = None,
+    joint_force: Any = None,
+    wrench: Any = None,
+    controller: Callable | None = None,
+    control_every: int | None = None,
     check_stability: bool = True,
     dtype: Any = jnp.float64,
 ) -> Trajectory:
@@ -45,7 +49,20 @@ def simulate(
     base_angle: None (prescribed joints held at their q0 value) or a
     JAX-traceable t -> angle for the robot's single prescribed joint;
     joint_motion: the same for several prescribed DoFs, t -> (n_a,).
-    tendon_force: None, a tension >= 0 (N) or a callable t -> tension(s).
+    tendon_force: None, tensions >= 0 (N, one per tendon or one for all), or
+    a callable t -> tensions or (t, q, qd) -> tensions.
+    joint_force: None, forces on the actuated joint coordinates
+    (``robot.actuated``: joint DoFs not prescribed; N m on a rotation, N on a
+    translation), or a callable of t or of (t, q, qd). Callables of (t, q, qd)
+    get the full coordinate and velocity vectors and are evaluated at every
+    integrator stage: continuous feedback.
+    wrench: None, (n_wrenches, 6) wrenches (moment N m, force N) at the
+    robot's ``wrenches`` points (world or section frame), or a callable of t
+    or of (t, q, qd) returning them.
+    controller, control_every: a sampled feedback controller (t, q, qd) ->
+    {"tendon_force": ..., "joint_force": ..., "wrench": ...} evaluated every
+    ``control_every`` integrator steps on the current state, its outputs held
+    in between (zero-order hold, as a digital controller or an RL policy acts).
     q0, qd0: (n,) initial coordinates/velocities (default: rest); entries of
     prescribed DoFs are replaced by the law at t = 0.
     integrator: "rk4" (default), "midpoint", "euler", "imex" or "ars443"
@@ -64,9 +81,12 @@ def simulate(
     """
     check_robot(robot)
     n = robot.n_dofs
-    laws = (("base_angle", base_angle, (1,)), ("joint_motion", joint_motion, (len(robot.prescribed),)),
-            ("tendon_force", tendon_force, (1, len(robot.tendons))))
+    laws = (("base_angle", base_angle, (1,), False), ("joint_motion", joint_motion, (len(robot.prescribed),), False),
+            ("tendon_force", tendon_force, (1, len(robot.tendons)), True),
+            ("joint_force", joint_force, (1, len(robot.actuated)), True),
+            ("wrench", wrench, (6 * len(robot.wrenches),), True))
     inputs.check_call(robot, integrator, duration, dt, n_steps, save_every, laws)
+    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench)
     dtype = inputs.float_dtype(dtype)
     n_steps, dt = inputs.steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
@@ -75,49 +95,79 @@ def simulate(
     qd0 = inputs.initial(qd0, n, "qd0")
     law = inputs.motion_law(robot, base_angle, joint_motion)
     tension_law, tension_value = inputs.tension_law(robot, tendon_force)
+    force_law, force_value = inputs.joint_force_law(robot, joint_force)
+    wrench_law, wrench_value = inputs.wrench_law(robot, wrench)
     if check_stability and concrete(dt) and concrete(q0) and inputs.robot_is_concrete(robot):
         limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
         require(float(dt) <= limit, "dt", float(dt),
                 f"(0, {limit:.4g}] s: the {integrator} stability limit estimated at q0 "
                 "(or choose integrator='imex' or 'ars443')")
-    if tension_value is not None:
-        tension_value = tension_value.astype(dtype)
+    if control is not None:
+        require(n_steps % control.every == 0, "control_every", control.every,
+                f"a divisor of n_steps={n_steps} (whole control periods)")
+    tension_value = None if tension_value is None else tension_value.astype(dtype)
+    force_value = None if force_value is None else force_value.astype(dtype)
+    wrench_value = None if wrench_value is None else wrench_value.astype(dtype)
     if dtype == np.float32:  # float64 array leaves (a traced E, say) would lift the run back to float64
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
     return _run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
-                jnp.asarray(dt, dtype=dtype), tension_value, n_steps=n_steps, save_every=save_every,
-                integrator=integrator, law=law, tension_law=tension_law)
+                jnp.asarray(dt, dtype=dtype), (tension_value, force_value, wrench_value), n_steps=n_steps,
+                save_every=save_every, integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law),
+                control=control)
 
 
-@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "tension_law"))
-def _run(robot, q0, qd0, dt, tension_value, *, n_steps, save_every, integrator, law, tension_law):
+def _input(law, value):
+    """An input as a callable (t, q, qd), or None (zero)."""
+    if law is not None:
+        return law
+    return None if value is None else (lambda t, q, qd: value)
+
+
+def _held(system: FreeDynamics, held: dict) -> FreeDynamics:
+    """``system`` with the controller's held outputs in place of its own inputs."""
+    pick = lambda key, own: (lambda t, q, qd: held[key]) if key in held else own  # noqa: E731
+    return FreeDynamics(system.robot, system.motion, pick("tendon_force", system.tension),
+                        pick("joint_force", system.joint_force), pick("wrench", system.wrench))
+
+
+def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:
+    q, qd, _ = system.full_state(t, q_u, qd_u)
+    return control(t, jnp.stack(q), jnp.stack(qd))
+
+
+@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "laws", "control"))
+def _run(robot, q0, qd0, dt, values, *, n_steps, save_every, integrator, law, laws, control):
     if law is None:
         held = q0[jnp.asarray(robot.prescribed, dtype=int)]
         law = lambda t: held + 0.0 * t  # noqa: E731
-    tension = tension_law if tension_law is not None else (
-        None if tension_value is None else (lambda t: tension_value))
-    system = FreeDynamics(robot, law, tension)
+    system = FreeDynamics(robot, law, *(_input(f, v) for f, v in zip(laws, values)))
     step = integrators.get(integrator)
     u = jnp.asarray(robot.free, dtype=int)
-    qu0, qdu0 = q0[u], qd0[u]
+    qu0, qdu0 = _split(q0[u]), _split(qd0[u])
+    t0 = jnp.zeros((), dt.dtype)
+    u0 = {} if control is None else _control(system, control, t0, qu0, qdu0)
 
     def one(carry, _):
-        k, q, qd = carry
-        q, qd = step.step(system, k * dt, q, qd, dt)
-        return (k + 1, q, qd), None
+        k, q, qd, held = carry
+        t = k * dt
+        if control is not None:  # sample at the period's first step, hold otherwise
+            held = jax.lax.cond(k % control.every == 0, lambda: _control(system, control, t, q, qd), lambda: held)
+        q, qd = step.step(_held(system, held), t, q, qd, dt)
+        return (k + 1, q, qd, held), None
 
     def chunk(carry, _):
         carry, _ = jax.lax.scan(one, carry, None, length=save_every)
-        k, q, qd = carry
-        return carry, (k, jnp.stack(q), jnp.stack(qd))
+        k, q, qd, held = carry
+        return carry, (k, jnp.stack(q), jnp.stack(qd), held)
 
-    carry0 = (jnp.asarray(0, dtype=int), _split(qu0), _split(qdu0))
-    _, (ks, qus, qdus) = jax.lax.scan(chunk, carry0, None, length=n_steps // save_every)
+    carry0 = (jnp.asarray(0, dtype=int), qu0, qdu0, u0)
+    _, (ks, qus, qdus, helds) = jax.lax.scan(chunk, carry0, None, length=n_steps // save_every)
     t = jnp.concatenate([jnp.zeros(1, dtype=ks.dtype), ks]) * dt
-    qu = jnp.concatenate([qu0[None], qus])
-    qdu = jnp.concatenate([qdu0[None], qdus])
-    return _assemble(robot, system, t, qu, qdu)
+    qu = jnp.concatenate([jnp.stack(qu0)[None], qus])
+    qdu = jnp.concatenate([jnp.stack(qdu0)[None], qdus])
+    helds = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), u0, helds)
+    return _assemble(robot, system, t, qu, qdu, helds)
 
 
 def _split(x) -> tuple:
@@ -125,7 +175,9 @@ def _split(x) -> tuple:
     return tuple(x[i] for i in range(x.shape[0]))
 
 
-def _assemble(robot, system, t, qu, qdu) -> Trajectory:
+def _assemble(robot, system, t, qu, qdu, helds) -> Trajectory:
+    """The saved states as a Trajectory; efforts and inputs at each saved state (a held
+    control: the value applied over the step that ends there)."""
     m = t.shape[0]
     q = jnp.zeros((m, robot.n_dofs), qu.dtype).at[:, jnp.asarray(robot.free, dtype=int)].set(qu)
     qd = jnp.zeros((m, robot.n_dofs), qu.dtype).at[:, jnp.asarray(robot.free, dtype=int)].set(qdu)
@@ -133,8 +185,19 @@ def _assemble(robot, system, t, qu, qdu) -> Trajectory:
         a = jnp.asarray(robot.prescribed, dtype=int)
         qa, qda, _ = jax.vmap(lambda s: tuple(jnp.stack(x) for x in system.prescribed_state(s)))(t)
         q, qd = q.at[:, a].set(qa), qd.at[:, a].set(qda)
-        torque = jax.vmap(lambda s, x, v: system.effort(s, _split(x), _split(v)))(t, qu, qdu)
+        torque = jax.vmap(lambda s, x, v, h: _held(system, h).effort(s, _split(x), _split(v)))(t, qu, qdu, helds)
     else:
         torque = jnp.zeros((m, 0), qu.dtype)
+
+    def applied(s, x, v, h):
+        sys = _held(system, h)
+        qf, qdf, _ = sys.full_state(s, _split(x), _split(v))
+        tension, force, wrench = sys.inputs(s, qf, qdf)
+        as_vec = lambda xs, n: jnp.asarray(jnp.stack(xs) if xs else jnp.zeros(n), qu.dtype)  # noqa: E731
+        w6 = jnp.asarray([list(w) for w in wrench], qu.dtype) if wrench else jnp.zeros((len(robot.wrenches), 6))
+        return as_vec(tension, len(robot.tendons)), as_vec(force, len(robot.actuated)), w6.astype(qu.dtype)
+
+    tension, force, wrench = jax.vmap(applied)(t, qu, qdu, helds)
     tip, tip_vel = jax.vmap(lambda x, v: tip_state(robot, x, v))(q, qd)
-    return Trajectory(t=t, q=q, qd=qd, tip=tip, tip_velocity=tip_vel, joint_torque=torque)
+    return Trajectory(t=t, q=q, qd=qd, tip=tip, tip_velocity=tip_vel, joint_torque=torque,
+                      tendon_force=tension, joint_force=force, wrench=wrench)

@@ -1,9 +1,14 @@
-"""The equations the integrators step: free DoFs, with prescribed DoFs and tendon
-tensions following time laws.
+"""The equations the integrators step: free DoFs, with prescribed DoFs following a
+time law and the inputs (tendon tensions, joint forces) following laws of time or
+of the state.
 
 ``FreeDynamics`` offers the integrator interface (``accel``, ``parts``) on the
 free coordinates u; the prescribed ones a follow ``motion(t)``, their velocity
-and acceleration by forward-mode autodiff of the law.
+and acceleration by forward-mode autodiff of the law. Because of that, a
+prescribed law depends on time only: one depending on the state would make the
+prescribed acceleration depend on the unknown one. Inputs may depend on the
+state, ``(t, q, qd)`` with the full q and qd, and are evaluated at every stage
+of the integrator (continuous feedback).
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from gvsjax.model import Robot
 
 @dataclass(frozen=True)
 class Law:
-    """A user's t -> values callable of fixed output size.
+    """A user's ``t -> values`` or, with ``state``, ``(t, q, qd) -> values`` callable of fixed size.
 
     Hashed by the function's identity, so repeated simulations with the same
     function reuse the compiled program.
@@ -28,17 +33,29 @@ class Law:
 
     fn: Callable
     size: int
+    state: bool = False
 
-    def __call__(self, t):
+    def __call__(self, t, q=None, qd=None):
+        out = self.fn(t, q, qd) if self.state else self.fn(t)
         # in the simulation's dtype (that of t): a float64 law must not lift a float32 run
-        return jnp.reshape(jnp.asarray(self.fn(t)).astype(jnp.result_type(t)), (self.size,))
+        return jnp.reshape(jnp.asarray(out).astype(jnp.result_type(t)), (self.size,))
+
+
+def _vector(xs) -> jax.Array:
+    return jnp.stack([lie.as_array(x) for x in xs])
 
 
 class FreeDynamics:
-    """The free DoFs' equations with the prescribed ones following ``motion``."""
+    """The free DoFs' equations with the prescribed ones following ``motion``.
 
-    def __init__(self, robot: Robot, motion: Callable, tension: Callable | None):
-        self.robot, self.motion, self.tension = robot, motion, tension
+    ``tension`` and ``joint_force`` are ``Law``-like callables ``(t, q, qd)``
+    (or None: zero); ``q``, ``qd`` are the full coordinate vectors.
+    """
+
+    def __init__(self, robot: Robot, motion: Callable, tension: Callable | None = None,
+                 joint_force: Callable | None = None, wrench: Callable | None = None):
+        self.robot, self.motion, self.tension, self.joint_force = robot, motion, tension, joint_force
+        self.wrench = wrench
         self.a, self.u = robot.prescribed, robot.free
 
     def prescribed_state(self, t):
@@ -50,7 +67,8 @@ class FreeDynamics:
         k = range(len(self.a))
         return [qa[i] for i in k], [qda[i] for i in k], [qdda[i] for i in k]
 
-    def _full(self, t, q_u, qd_u):
+    def full_state(self, t, q_u, qd_u):
+        """The full (q, qd) as lists of scalars and the prescribed accelerations."""
         qa, qda, qdda = self.prescribed_state(t)
         n = self.robot.n_dofs
         q, qd = [None] * n, [None] * n
@@ -60,15 +78,23 @@ class FreeDynamics:
             q[i], qd[i] = q_u[k], qd_u[k]
         return q, qd, qdda
 
-    def _tension(self, t):
-        if not self.robot.tendons:
-            return ()
-        T = jnp.atleast_1d(self.tension(t)) if self.tension is not None else jnp.zeros(len(self.robot.tendons))
-        return [T[i] for i in range(len(self.robot.tendons))]
+    def inputs(self, t, q, qd) -> tuple[list, list, list]:
+        """(tendon tensions, joint forces, wrenches) at (t, q, qd): lists of scalars, and of
+        6-tuples for the wrenches; empty where no input is given."""
+        n_t, n_j, n_w = len(self.robot.tendons), len(self.robot.actuated), len(self.robot.wrenches)
+        given = [(law, n) for law, n in ((self.tension, n_t), (self.joint_force, n_j), (self.wrench, n_w))
+                 if law is not None and n]
+        qv, qdv = (_vector(q), _vector(qd)) if given else (None, None)
+        T = self.tension(t, qv, qdv) if self.tension is not None and n_t else jnp.zeros(n_t)
+        f = self.joint_force(t, qv, qdv) if self.joint_force is not None and n_j else None
+        w = jnp.reshape(self.wrench(t, qv, qdv), (n_w, 6)) if self.wrench is not None and n_w else None
+        return ([T[i] for i in range(n_t)], [] if f is None else [f[i] for i in range(n_j)],
+                [] if w is None else [tuple(w[i, k] for k in range(6)) for i in range(n_w)])
 
     def _mf(self, t, q_u, qd_u):
-        q, qd, qdda = self._full(t, q_u, qd_u)
-        M, F = dynamics.mass_and_forces(self.robot, q, qd, self._tension(t))
+        q, qd, qdda = self.full_state(t, q_u, qd_u)
+        tension, force, wrench = self.inputs(t, q, qd)
+        M, F = dynamics.mass_and_forces(self.robot, q, qd, tension, force, wrench, t)
         return q, qd, qdda, M, F
 
     def accel(self, t, q_u, qd_u):

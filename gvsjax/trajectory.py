@@ -12,8 +12,9 @@ class Trajectory:
 
     t (m,), q (m, n), qd (m, n), tip (m, 3) world tip position, tip_velocity
     (m, 3), joint_torque (m, n_prescribed): the effort the prescribed joints
-    exert (by inverse dynamics), N m for revolute joints. ``m = n_steps /
-    save_every + 1``.
+    exert (by inverse dynamics), N m for revolute joints; tendon_force
+    (m, n_tendons), joint_force (m, n_actuated) and wrench (m, n_wrenches, 6):
+    the inputs applied (zeros where none is given). ``m = n_steps / save_every + 1``.
     """
 
     t: jax.Array
@@ -22,3 +23,6 @@ class Trajectory:
     tip: jax.Array
     tip_velocity: jax.Array
     joint_torque: jax.Array
+    tendon_force: jax.Array
+    joint_force: jax.Array
+    wrench: jax.Array

@@ -61,14 +61,31 @@ def integer(name: str, value: Any, low: int = 1) -> None:
 
 def check_robot(robot) -> None:
     """Physical sanity of every link, load, mass and tendon (concrete leaves only)."""
-    from gvsjax.model import RigidLink, SoftLink
+    from gvsjax.model import SECTION_SHAPES, RigidLink, SoftLink
 
     require(len(robot.links) >= 1, "links", robot.links, "at least one link")
     nonnegative("gravity", robot.gravity)
     for i, link in enumerate(robot.links):
+        if not isinstance(link, (SoftLink, RigidLink)):
+            raise ValueError(f"links[{i}]={type(link).__name__} is invalid: expected SoftLink or RigidLink")
+        nj = link.joint.n_dofs
+        for name in ("joint_stiffness", "joint_damping"):
+            value = getattr(link, name)
+            if concrete(value):
+                v = _numbers(f"links[{i}].{name}", value, None)
+                require(v.shape in ((), (nj,)), f"links[{i}].{name}", value,
+                        f"a scalar or {nj} values (one per joint DoF)")
+            nonnegative(f"links[{i}].{name}", value)
         if isinstance(link, SoftLink):
             positive(f"links[{i}].length", link.length)
-            positive(f"links[{i}].radius", link.radius)
+            require(link.shape in SECTION_SHAPES, f"links[{i}].shape", link.shape, f"one of {SECTION_SHAPES}")
+            for name in ("radius",) if link.shape == "circle" else ("width", "height"):
+                positive(f"links[{i}].{name}", getattr(link, name))
+            positive(f"links[{i}].taper", link.taper)
+            if link.rest_strain is not None and concrete(link.rest_strain):
+                v = _numbers(f"links[{i}].rest_strain", link.rest_strain, None)
+                require(v.ndim in (1, 2) and v.shape[0] == 6 and bool(np.all(np.isfinite(v))),
+                        f"links[{i}].rest_strain", link.rest_strain, "finite values of shape (6,) or (6, k)")
             positive(f"links[{i}].material.youngs_modulus", link.material.youngs_modulus)
             positive(f"links[{i}].material.density", link.material.density)
             nonnegative(f"links[{i}].material.damping", link.material.damping)
@@ -91,6 +108,11 @@ def check_robot(robot) -> None:
         finite(f"loads[{k}].magnitude", load.magnitude)
         require(-n <= load.link < n, f"loads[{k}].link", load.link, f"a link index in [-{n}, {n})")
         require(0.0 <= load.X <= 1.0, f"loads[{k}].X", load.X, "a material coordinate in [0, 1]")
+    for k, site in enumerate(robot.wrenches):
+        require(-n <= site.link < n, f"wrenches[{k}].link", site.link, f"a link index in [-{n}, {n})")
+        require(0.0 <= site.X <= 1.0, f"wrenches[{k}].X", site.X, "a material coordinate in [0, 1]")
+    require(robot.distributed is None or callable(robot.distributed), "distributed", robot.distributed,
+            "None or a callable (X, R, p, eta, t) -> (6,) per-metre wrench")
     for k, pm in enumerate(robot.masses):
         nonnegative(f"masses[{k}].mass", pm.mass)
         require(-n <= pm.link < n, f"masses[{k}].link", pm.link, f"a link index in [-{n}, {n})")
@@ -100,9 +122,11 @@ def check_robot(robot) -> None:
                 td.link, "the index of a soft link")
         finite(f"tendons[{k}].offset", td.offset)
         link = robot.links[td.link]
-        if concrete(td.offset) and concrete(link.radius):
-            require(abs(float(td.offset)) <= float(link.radius), f"tendons[{k}].offset", td.offset,
-                    f"|offset| <= the link radius {float(link.radius)} m (the tendon runs inside the rod)")
+        half = link.radius if link.shape == "circle" else (link.width, link.height)
+        if concrete(td.offset) and concrete(half) and concrete(link.taper):
+            inside = float(np.min(half)) * (1.0 if link.shape == "circle" else 0.5) * min(1.0, float(link.taper))
+            require(abs(float(td.offset)) <= inside, f"tendons[{k}].offset", td.offset,
+                    f"|offset| <= {inside:.4g} m, the section's smallest half-extent (the tendon runs inside)")
         require(math.isclose(math.hypot(*td.direction), 1.0, rel_tol=1e-9), f"tendons[{k}].direction",
                 td.direction, "a unit 2-vector in the section's (y, z) plane")
     for i in robot.prescribed:
