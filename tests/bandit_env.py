@@ -1,4 +1,4 @@
-"""Test-only contextual bandit implementing the gvsjax functional env API.
+"""Test-only contextual bandit: a ``gvsjax.tasks.Environment`` without physics.
 
 Each step shows a random target ``t`` in [-1, 1]^2; the best action is
 ``M t`` (inside [-1, 1]^2 since each row of ``M`` has absolute sum < 1) and
@@ -16,6 +16,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from gvsjax.tasks import Environment
+
 MATRIX = ((0.6, -0.3), (0.2, 0.5))
 
 
@@ -25,7 +27,7 @@ class BanditState:
     step: jax.Array  # int32
 
 
-class BanditEnv:
+class BanditEnv(Environment):
     name = "bandit"
     action_size = 2
 

@@ -1,4 +1,5 @@
-"""The basketball task: action mapping, flight geometry, cost, reward and targets."""
+"""The basketball task (gvsjax.tasks.basketball): action mapping, flight geometry, release
+states, cost, reward, non-finite actions, targets, and the figures' arm and ball drawings."""
 
 import math
 
@@ -6,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import capture_figures, finite_line, no_compile
 
 import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 from gvsjax.tasks import basketball as bb
@@ -111,11 +113,17 @@ def test_step_cost_reward_and_exact_hit(env_and_params):
     assert abs(float(reward) - math.exp(-0.22)) < 1e-6 and abs(float(reward) - 0.8) < 3e-3
 
 
-def test_nonfinite_action_is_invalid(env_and_params):
+def test_nonfinite_action_is_thrown_as_the_centre_and_flagged(env_and_params):
     env, P = env_and_params
+    key = jax.random.PRNGKey(0)
     _, state = env.reset(jax.random.PRNGKey(1), P)
-    _, _, reward, done, info = env.step(jax.random.PRNGKey(0), state, jnp.array([jnp.nan, 0.0]), P)
+    with no_compile(), pytest.raises(ValueError, match="action has shape"):  # known while tracing
+        jax.eval_shape(lambda a: env.env.step(key, state, a, P), jax.ShapeDtypeStruct((3,), jnp.float64))
+    _, _, reward, done, info = env.step(key, state, jnp.array([jnp.nan, 0.0]), P)
     assert not bool(info["valid"]) and float(reward) == 0.0 and bool(done)
+    _, _, reward, _, centre = env.step(key, state, jnp.zeros(2), P)
+    assert bool(centre["valid"]) and float(reward) > 0.0
+    assert (float(info["T"]), float(info["delta"])) == (float(centre["T"]), float(centre["delta"]))
 
 
 def test_targets_reachable_inside_window_and_spread(env_and_params):
@@ -157,7 +165,6 @@ def test_unknown_sampling_mode_is_a_clear_error():
         bb.make_params(target_sampling="grid")
 
 
-
 def test_reset_without_target_tables_says_how_to_build_them():
     env = make("basketball")
     bare = bb.BasketballParams(arm=gvsjax.paper_arm(tip_force=bb.BALL_WEIGHT))  # step works, reset needs tables
@@ -175,3 +182,44 @@ def test_default_integration_within_1mm_of_converged(env_and_params):
     p_ref, v_ref = jax.jit(jax.vmap(lambda a, b: bb.release_state(ref, a, b)))(T, delta)
     assert np.max(np.linalg.norm(p - p_ref, axis=1)) < 1e-3
     assert np.max(np.linalg.norm(v - v_ref, axis=1)) < 5e-3
+
+
+def test_release_drawing_is_the_envs_throw(env_and_params):
+    """The figures' arm and ball: finite, the arm's base at the origin and its 1 m backbone
+    ending where the ball starts, at the env's own release point; the flight ends on the floor."""
+    _, P = env_and_params
+    arm, ball = bb.figures.release_drawing(P, 2.0, 0.9)
+    assert arm.ndim == 2 and arm.shape[1] == 3 and arm.shape[0] > 2 and ball.shape == (200, 2)
+    assert np.all(np.isfinite(arm)) and np.all(np.isfinite(ball))
+    np.testing.assert_allclose(arm[0], 0.0, atol=1e-12)
+    length = np.sum(np.linalg.norm(np.diff(arm, axis=0), axis=1))
+    assert 0.98 < length <= 1.0 + 1e-9  # the polyline of an inextensible 1 m arm
+    p0, _ = _release(P, 2.0, 0.9)
+    np.testing.assert_allclose(arm[-1, :2], p0, atol=1e-12)
+    np.testing.assert_allclose(ball[0], p0, atol=1e-12)
+    assert abs(ball[-1, 1] - P.y_floor) < 1e-9 and np.all(ball[:, 1] >= P.y_floor - 1e-9)
+
+
+def test_throw_and_shapes_figures_plot_the_arm_and_the_ball(env_and_params, tmp_path, monkeypatch):
+    _, P = env_and_params
+    captured = capture_figures(monkeypatch)
+    arm, ball = bb.figures.release_drawing(P, 2.0, 0.9)
+    bb.figures.throw_figure(P, np.array([-5.0, 1.0]), 2.0, 0.9, tmp_path / "throw.png", miss_m=0.01)
+    lines = captured["throw.png"]
+    drawn = finite_line(lines, "arm at release")
+    np.testing.assert_allclose(np.stack([drawn["x"], drawn["y"]], 1), arm[:, :2])
+    drawn = finite_line(lines, "ball", min_points=200)
+    np.testing.assert_allclose(np.stack([drawn["x"], drawn["y"]], 1), ball)
+    finite_line(lines, "target", min_points=1)
+
+    deltas = (0.85, 0.9, 0.95, 1.0)
+    bb.figures.shapes(P, tmp_path / "shapes.png", T=2.0, deltas=deltas)
+    lines = captured["shapes.png"]
+    balls = [finite_line(lines, f"delta = {d:.2f}", min_points=200) for d in deltas]
+    arms = [ln for ln in lines if ln["x"].size > 2 and not ln["label"].startswith("delta")]
+    assert len(arms) == len(deltas)
+    for a, b in zip(arms, balls):
+        assert np.all(np.isfinite(a["x"])) and np.all(np.isfinite(a["y"]))
+        assert abs(a["x"][0]) < 1e-12 and abs(a["y"][0]) < 1e-12  # the base
+        assert abs(a["x"][-1] - b["x"][0]) < 1e-12 and abs(a["y"][-1] - b["y"][0]) < 1e-12  # ball leaves the tip
+        assert abs(b["y"][-1] - P.y_floor) < 1e-9

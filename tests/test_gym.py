@@ -1,4 +1,5 @@
-"""The Gymnasium wrappers (gvsjax.gym): API conformance, seeding, the vector env, input checks."""
+"""The Gymnasium wrappers (gvsjax.gym): every registered task's id passes ``check_env``; seeding,
+the vector env against single envs, autoreset, input checks, info and rendering."""
 
 import warnings
 
@@ -43,9 +44,9 @@ def rollout(env, seed, actions):
     return out
 
 
-@pytest.mark.parametrize("env_id", sorted(gg.IDS))
+@pytest.mark.parametrize("env_id", sorted(gg.register_all()))
 def test_check_env(env_id, bb_params, pp_params):
-    params = bb_params if "Basketball" in env_id else pp_params
+    params = {gg.gym_id("basketball"): bb_params, gg.gym_id("pickplace"): pp_params}.get(env_id)
     env = gym.make(env_id, env_params=params)
     assert isinstance(env.unwrapped, gg.GvsjaxEnv)
     assert env.observation_space.dtype == np.float32 and env.action_space.dtype == np.float32

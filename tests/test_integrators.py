@@ -1,4 +1,5 @@
-"""Each integrator converges at its documented order on the fast throw."""
+"""The integrators (gvsjax.integrators): each converges at its documented order on the fast throw;
+the ARS(4,4,3) tableau meets the order conditions and stays accurate beyond RK4's step limit."""
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
 from fractions import Fraction

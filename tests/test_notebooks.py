@@ -1,10 +1,6 @@
-"""Execute every notebook in notebooks/ (stored without outputs) so that they never rot.
-
-Each runs in a fresh kernel ("python3": ipykernel installed in this environment; jupyter_client
-starts the spec's "python" as sys.executable, so the kernel sees the same packages)
-with its working directory in a temporary folder, so files it writes (e.g. a GIF) stay out of
-the repository. A failing assertion inside a notebook fails the test. Cost: the notebooks'
-compile time dominates (~150 s of CPU for all three, measured).
+"""Every notebook in notebooks/ is stored without outputs and runs in a fresh kernel ("python3",
+the environment's ipykernel) with a temporary working directory; a failing cell fails the test.
+The notebooks' compile time dominates (~150 s of CPU for all three).
 """
 
 from __future__ import annotations
@@ -19,10 +15,8 @@ pytest.importorskip("ipykernel", reason="the test extra (nbformat, nbclient, ipy
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
 TIMEOUT_S = 600  # per cell: generous for a loaded machine; an idle one needs < 60 s per notebook
-
-
-def test_notebooks_found():
-    assert len(NOTEBOOKS) >= 3, NOTEBOOKS
+if not NOTEBOOKS:  # an empty parametrization would only skip
+    raise RuntimeError("no notebooks found in notebooks/")
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

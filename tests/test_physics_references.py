@@ -1,5 +1,6 @@
-"""The simulator against independent references: closed-form beam results,
-the classic elastica, energy balance and finite differences (issue 2)."""
+"""The simulator against independent references: closed-form beam frequencies, the classic
+elastica, energy balance (conserved without damping, never increasing with it), the tendon's
+circular arc and the design notes' independently computed release state."""
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
 import jax
@@ -33,15 +34,6 @@ def dominant_frequency(signal: np.ndarray, dt: float, guess: float) -> float:
         else:
             a = c
     return (a + b) / 2
-
-
-def test_conventions_hanging_and_horizontal():
-    arm = gv.paper_arm()
-    tip, _ = gv.tip_state(arm, jnp.zeros(3), jnp.zeros(3))
-    np.testing.assert_allclose(tip, [0.0, -1.0, 0.0], atol=1e-12)
-    arm0 = gv.paper_arm(gravity=0.0)
-    traj = gv.simulate(arm0, 0.2, 2e-3, base_angle=lambda t: jnp.pi / 2)
-    np.testing.assert_allclose(traj.tip[-1], [1.0, 0.0, 0.0], atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -96,32 +88,6 @@ def test_energy_never_increases_with_damping():
     total = np.asarray(e["kinetic"] + e["elastic"] + e["gravity"] + e["loads"])
     assert np.all(np.diff(total) <= 1e-9 * np.abs(total).max())
     assert total[-1] < total[0] - 0.1  # and it does dissipate
-
-
-def test_gradients_match_central_differences():
-    def tip_x(params):
-        E, eta, P, theta_f = params
-        arm = gv.paper_arm(youngs_modulus=E, damping=eta, tip_force=P)
-        traj = gv.simulate(arm, 1.0, n_steps=100, base_angle=lambda t: theta_f * t**2, save_every=100)
-        return traj.tip[-1, 0] + 0.3 * traj.tip[-1, 1]
-
-    x0 = jnp.array([5e6, 1e5, 5.886, 2.0])
-    grad = np.asarray(jax.jit(jax.grad(tip_x))(x0))
-    f = jax.jit(tip_x)
-    for i in range(4):
-        h = 1e-5 * float(x0[i])
-        e = jnp.zeros(4).at[i].set(h)
-        fd = (float(f(x0 + e)) - float(f(x0 - e))) / (2 * h)
-        assert grad[i] == pytest.approx(fd, rel=1e-4, abs=1e-12), i
-
-
-def test_gradients_finite_at_straight_configuration():
-    arm = gv.paper_arm(tip_force=5.886)
-    g = jax.grad(lambda q: jnp.sum(gv.tip_state(arm, q, jnp.ones(3))[1]))(jnp.zeros(3))
-    assert np.all(np.isfinite(g))
-    rod = gv.rod_3d()
-    g3 = jax.grad(lambda q: jnp.sum(gv.tip_state(rod, q, jnp.ones(rod.n_dofs))[1]))(jnp.zeros(rod.n_dofs))
-    assert np.all(np.isfinite(g3))
 
 
 def test_tendon_bends_free_arm_into_circular_arc():

@@ -1,7 +1,5 @@
-"""The pick-and-place task: profiles, mappings, step chaining, reachable targets.
-
-Two compilations in all (the target tables' episode and the batched env step),
-so the module runs in well under a minute.
+"""The pick-and-place task (gvsjax.tasks.pickplace): profiles, mappings, observation, reward,
+step chaining, non-finite actions and blown-up states, reachable targets, and the episode figure.
 """
 
 import math
@@ -10,10 +8,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import capture_figures, finite_line, no_compile
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 from gvsjax.tasks import make
 from gvsjax.tasks import pickplace as pp
+from gvsjax.tasks.pickplace.env import QD_BOUND, _reset_state
+
+TENDON_ARM = gvsjax.paper_arm(tendon_offset=0.025)
 
 
 @pytest.fixture(scope="module")
@@ -141,3 +145,78 @@ def test_reset_without_target_tables_says_how_to_build_them():
     bare = pp.PickPlaceParams(arm=gvsjax.paper_arm(tendon_offset=0.025))  # step works, reset needs tables
     with pytest.raises(ValueError, match="no target tables.*make_params"):
         env.reset(jax.random.PRNGKey(0), bare)
+
+
+@settings(max_examples=30, deadline=None)
+@given(shape=st.lists(st.integers(0, 3), max_size=3).map(tuple).filter(lambda s: s != (2,)))
+def test_action_of_wrong_shape_is_rejected_while_tracing(shape):
+    env = pp.PickPlace()
+    params = pp.PickPlaceParams(arm=TENDON_ARM)  # no target tables: step does not read them
+    state = _reset_state(jnp.asarray([[0.5, -0.8], [-0.5, -0.8]]))
+    step = lambda a: env.step(jax.random.PRNGKey(0), state, a, params)  # noqa: E731
+    with no_compile(), pytest.raises(ValueError, match=r"action has shape .* expected \(2,\)"):
+        jax.eval_shape(step, jax.ShapeDtypeStruct(shape, jnp.float64))
+
+
+def test_non_finite_action_is_replaced_by_the_centre_and_flagged(env_and_params, batched_step):
+    _, P = env_and_params
+    n = P.pick.shape[0]  # the batch size of the other tests: the compiled step is reused
+    actions = jnp.array([[math.nan, 0.5], [0.2, math.inf], [-math.inf, math.nan], [0.3, -0.4],
+                         [0.0, 0.0], [-0.5, 0.9]])
+    assert actions.shape[0] == n
+    _, state = jax.vmap(pp.PickPlace().reset_to, in_axes=(0, None))(jnp.stack([P.pick, P.place], 1), P)
+    obs, state, reward, done, info = batched_step(jax.random.split(jax.random.PRNGKey(0), n), state, actions, P)
+    assert info["valid"].tolist() == [False, False, False, True, True, True]
+    assert done[:3].all() and np.array_equal(reward[:3], [0.0, 0.0, 0.0]) and np.all(reward[3:] > 0)
+    # the simulated action was the centre of the box: theta_F = 0, tension = 15 N
+    np.testing.assert_array_equal(info["theta_final"][:3], 0.0)
+    np.testing.assert_array_equal(info["tension"][:3], P.tension_max / 2)
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(state.q))
+
+
+def test_blow_up_is_flagged_even_while_finite():
+    # 300 RK4 steps per 5 s step: dt = 16.7 ms, above the 13.9 ms stability limit; the
+    # integration grows without reaching inf, so only the magnitude bound can catch it
+    params = pp.PickPlaceParams(arm=TENDON_ARM, n_steps=300, integrator="rk4")
+    action = jnp.array([[1.0 / math.pi, -1.0 / 3.0]])  # theta_F = 1 rad, 10 N
+
+    @jax.jit
+    def run(state, action):
+        out = jax.vmap(lambda a: pp.PickPlace().step(jax.random.PRNGKey(0), state, a, params))(action)
+        theta, tension = pp.action_to_physical(action[0], params)
+        return out, pp.run_step(params, state.q, state.qd, state.tension, theta, tension)
+
+    (_, _, reward, done, info), traj = run(_reset_state(jnp.asarray([[0.5, -0.8], [-0.5, -0.8]])), action)
+    q, qd = np.asarray(traj.q[-1]), np.asarray(traj.qd[-1])
+    assert np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+    assert np.max(np.abs(qd)) > QD_BOUND  # blown up (a sane step stays below 3)
+    assert not bool(info["valid"][0]) and bool(done[0]) and float(reward[0]) == 0.0
+
+
+def test_episode_figure_draws_the_episode_the_env_plays(env_and_params, tmp_path, monkeypatch):
+    """Fig. 6 of a table row: finite arm shapes from the joint, both tip paths ending on the row's
+    targets (the drawing's 500 RK4 steps end within 0.2 mm of the env's), finite controls."""
+    _, P = env_and_params
+    captured = capture_figures(monkeypatch)
+    actions = np.stack([P.pick_action[0], P.place_action[0]])
+    targets = np.stack([P.pick[0], P.place[0]])
+    pp.figures.episode_figure(pp.PickPlaceParams(arm=TENDON_ARM), actions, targets, tmp_path / "fig6.png")
+    lines = captured["fig6.png"]
+    for k in range(2):  # the two shape panels
+        panel = [ln for ln in lines if ln["axes"] == k]
+        arms = [ln for ln in panel if ln["label"].startswith("_") and ln["x"].size > 2]
+        assert len(arms) >= 10  # a shape every 0.5 s of the 5 s step
+        for a in arms:
+            assert np.all(np.isfinite(a["x"])) and np.all(np.isfinite(a["y"]))
+            assert abs(a["x"][0]) < 1e-12 and abs(a["y"][0]) < 1e-12  # from the joint
+        tip = finite_line(panel, "tip path", min_points=100)
+        assert np.hypot(tip["x"][-1] - targets[k, 0], tip["y"][-1] - targets[k, 1]) < 1e-3
+        finite_line(panel, "target", min_points=1)
+    theta, pull = (np.asarray(x) for x in pp.action_to_physical(jnp.asarray(actions), P))
+    angle = [ln for ln in lines if ln["axes"] == 2 and ln["x"].size > 2]  # not the step's boundary
+    tension = [ln for ln in lines if ln["axes"] == 3]
+    assert len(angle) == len(tension) == 1
+    for curve in angle + tension:
+        assert curve["x"].size > 100 and np.all(np.isfinite(curve["x"])) and np.all(np.isfinite(curve["y"]))
+    assert abs(angle[0]["y"][-1] - np.degrees(theta[1])) < 1e-6  # at rest on the commanded angle
+    np.testing.assert_allclose(tension[0]["y"][[0, -1]], [0.0, pull[1]], atol=1e-9)  # ramps 0 N -> T2

@@ -1,10 +1,13 @@
-"""Structure of the equations (Lagrangian consistency, symmetry, 3D generality)."""
+"""Equations of motion (gvsjax.dynamics): the recursion against the Lagrangian by autodiff,
+the mass matrix at rest against its closed form, energy conservation of a rigid-soft 3D
+chain on free joints, and 3D statics (lateral-load symmetry, planar bending, pure torsion)."""
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import rigid_soft_chain
 
 from gvsjax import dynamics, lie
 
@@ -21,18 +24,6 @@ def _lagrangian(robot):
         return e["kinetic"] - e["elastic"] - e["gravity"] - e["loads"]
 
     return L
-
-
-def rigid_soft_chain(damping=0.0):
-    """A rigid upper arm on a free shoulder, then a soft forearm on a free elbow, in 3D."""
-    upper = gv.RigidLink(mass=0.8, inertia=(2e-3, 1e-2, 1e-2), com=(0.15, 0.0, 0.0), length=0.3,
-                         joint=gv.Joint("revolute", (0.0, 0.0, 1.0)))
-    fore = gv.SoftLink(length=0.6, radius=0.03, material=gv.Material(2e6, 1100.0, damping, 0.5),
-                       basis=gv.StrainBasis(orders=(0, 1, 1, -1, -1, -1), kind="legendre"),
-                       joint=gv.Joint("revolute", (0.0, 1.0, 0.0)), n_gauss=4)
-    return gv.Robot(links=(upper, fore), gravity=9.81,
-                    loads=(gv.PointLoad(magnitude=2.0, link=1, X=0.5, direction=(0.0, 0.0, -1.0)),),
-                    masses=(gv.PointMass(mass=0.2, link=1, X=1.0),))
 
 
 ROBOTS = {
@@ -127,55 +118,3 @@ def test_pure_tip_torque_gives_pure_torsion():
     twist = np.arctan2(R[2, 1], R[1, 1])
     assert twist == pytest.approx(torque * 1.0 / (G * J), rel=1e-6)
     np.testing.assert_allclose(traj.tip[-1], [1.0, 0.0, 0.0], atol=1e-9)  # no bending
-
-
-def test_monomial_and_legendre_give_the_same_arm():
-    """Same span, same quadrature: the two bases are one model in other coordinates."""
-    theta_f, T = np.deg2rad(210.0), 0.8
-
-    def tips(basis):
-        arm = gv.paper_arm(tip_force=5.886, n_modes=3, basis=basis)
-        return gv.simulate(arm, T, n_steps=1000, base_angle=lambda t: theta_f * (t / T) ** 2,
-                           save_every=100).tip
-
-    np.testing.assert_allclose(tips("monomial"), tips("legendre"), atol=1e-9)
-
-
-def test_tip_converges_with_quadrature_points():
-    q = jnp.array([np.pi / 2, -3.0, 5.0])
-    tip = lambda n: np.asarray(gv.tip_state(gv.paper_arm(n_gauss=n), q, jnp.zeros(3))[0])  # noqa: E731
-    ref = tip(60)
-    errs = [np.linalg.norm(tip(n) - ref) for n in (3, 5, 8)]
-    # gvs-notes 3.2: 1.8e-3, 3.3e-4, 6.1e-5 m for 4th-order Magnus
-    np.testing.assert_allclose(errs, [1.8e-3, 3.3e-4, 6.1e-5], rtol=0.1)
-
-
-def test_jacobians_map_rates_to_twists():
-    robot = rigid_soft_chain()
-    rng = np.random.default_rng(1)
-    q = jnp.asarray(rng.normal(size=robot.n_dofs))
-    qd = jnp.asarray(rng.normal(size=robot.n_dofs))
-    J = gv.jacobians(robot, q)  # (points, 6, n), body frame
-    R, p = gv.frames(robot, q)
-    _, v_tip = gv.tip_state(robot, q, qd)
-    np.testing.assert_allclose(R[-1] @ (J[-1] @ qd)[3:], v_tip, atol=1e-12)
-    # world velocity of every point equals the time derivative of its position
-    p_dot = jax.jvp(lambda x: gv.frames(robot, x)[1], (q,), (qd,))[1]
-    np.testing.assert_allclose(jnp.einsum("kij,kj->ki", R, (J @ qd)[:, 3:]), p_dot, atol=1e-12)
-    # Jdot is the derivative of J along qd (central differences)
-    h = 1e-6
-    fd = (gv.jacobians(robot, q + h * qd) - gv.jacobians(robot, q - h * qd)) / (2 * h)
-    np.testing.assert_allclose(gv.jacobian_rates(robot, q, qd), fd, atol=1e-7)
-
-
-@pytest.mark.parametrize("fn, args", [
-    (gv.backbone, ("q",)), (gv.frames, ("q",)), (gv.jacobians, ("q",)),
-    (gv.tip_state, ("q", "qd")), (gv.energy, ("q", "qd")),
-])
-def test_wrong_coordinate_length_is_named(fn, args):
-    arm = gv.paper_arm()
-    n = arm.n_dofs
-    for bad in args:  # one argument of length n + 1, the others right
-        values = [np.zeros(n + 1) if name == bad else np.zeros(n) for name in args]
-        with pytest.raises(AssertionError, match=rf"{bad} must have shape \(n_dofs,\) = \({n},\)"):
-            fn(arm, *values)
