@@ -193,8 +193,9 @@ def _assemble(robot, system, t, qu, qdu, helds) -> Trajectory:
         sys = _held(system, h)
         qf, qdf, _ = sys.full_state(s, _split(x), _split(v))
         tension, force, wrench = sys.inputs(s, qf, qdf)
-        as_vec = lambda xs, n: jnp.asarray(jnp.stack(xs) if xs else jnp.zeros(n), qu.dtype)  # noqa: E731
-        w6 = jnp.asarray([list(w) for w in wrench], qu.dtype) if wrench else jnp.zeros((len(robot.wrenches), 6))
+        as_vec = lambda xs, n: jnp.asarray(jnp.stack(xs), qu.dtype) if xs else jnp.zeros(n, qu.dtype)  # noqa: E731
+        w6 = jnp.asarray([list(w) for w in wrench], qu.dtype) if wrench else jnp.zeros((len(robot.wrenches), 6),
+                                                                                      qu.dtype)
         return as_vec(tension, len(robot.tendons)), as_vec(force, len(robot.actuated)), w6.astype(qu.dtype)
 
     tension, force, wrench = jax.vmap(applied)(t, qu, qdu, helds)

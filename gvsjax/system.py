@@ -85,7 +85,7 @@ class FreeDynamics:
         given = [(law, n) for law, n in ((self.tension, n_t), (self.joint_force, n_j), (self.wrench, n_w))
                  if law is not None and n]
         qv, qdv = (_vector(q), _vector(qd)) if given else (None, None)
-        T = self.tension(t, qv, qdv) if self.tension is not None and n_t else jnp.zeros(n_t)
+        T = self.tension(t, qv, qdv) if self.tension is not None and n_t else jnp.zeros(n_t, jnp.result_type(t))
         f = self.joint_force(t, qv, qdv) if self.joint_force is not None and n_j else None
         w = jnp.reshape(self.wrench(t, qv, qdv), (n_w, 6)) if self.wrench is not None and n_w else None
         return ([T[i] for i in range(n_t)], [] if f is None else [f[i] for i in range(n_j)],
