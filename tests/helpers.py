@@ -9,16 +9,28 @@ PNG exists.
 
 from __future__ import annotations
 
+import math
 from contextlib import contextmanager
 from pathlib import Path
 
 import jax
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
 
 import gvsjax  # noqa: F401  (x64 and the XLA flag before JAX starts its backend)
 
 _COMPILES = [0]
+
+# hypothesis settings and strategies for bad-input tests
+FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+nan_inf = st.sampled_from([math.nan, math.inf, -math.inf])
+not_a_number = st.one_of(st.text(max_size=5), st.none(), st.booleans(), st.just([]),
+                         st.just({"a": 1}), st.just(object()))
+not_positive = st.one_of(st.floats(max_value=0.0, allow_nan=False), st.integers(max_value=0), nan_inf,
+                         not_a_number)
 
 
 def _on_event(event, duration, **kwargs):

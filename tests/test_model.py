@@ -6,17 +6,10 @@ import gvsjax as gv  # noqa: I001  (first: it configures JAX)
 import math
 
 import numpy as np
-from helpers import raises_naming
-from hypothesis import HealthCheck, example, given, settings
+from helpers import FAST, nan_inf, not_a_number, not_positive, raises_naming
+from hypothesis import example, given
 from hypothesis import strategies as st
 
-FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-
-nan_inf = st.sampled_from([math.nan, math.inf, -math.inf])
-not_a_number = st.one_of(st.text(max_size=5), st.none(), st.booleans(), st.just([]),
-                         st.just({"a": 1}), st.just(object()))
-not_positive = st.one_of(st.floats(max_value=0.0, allow_nan=False), st.integers(max_value=0), nan_inf,
-                         not_a_number)
 negative = st.one_of(st.floats(max_value=-1e-12, allow_nan=False), st.integers(max_value=-1),
                      st.just(math.nan), st.just(math.inf), not_a_number)
 not_finite = st.one_of(nan_inf, not_a_number)

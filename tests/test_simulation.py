@@ -12,19 +12,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import raises_naming
-from hypothesis import HealthCheck, example, given, settings
+from helpers import FAST, nan_inf, not_positive, raises_naming
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from gvsjax.integrators import INTEGRATORS
 
-FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-
-nan_inf = st.sampled_from([math.nan, math.inf, -math.inf])
-not_a_number = st.one_of(st.text(max_size=5), st.none(), st.booleans(), st.just([]),
-                         st.just({"a": 1}), st.just(object()))
-not_positive = st.one_of(st.floats(max_value=0.0, allow_nan=False), st.integers(max_value=0), nan_inf,
-                         not_a_number)
 bad_count = st.one_of(st.integers(max_value=0), st.floats(allow_nan=True), st.booleans(),
                       st.text(max_size=3), st.none())
 
