@@ -1,10 +1,11 @@
-"""GIF animations (gvsjax.animate dispatching to a task's ``animate``; the tasks' ``throw_gif``
-and ``episode_gif``): frame counts, and bad input named with exit code 2 (a few frames, small
-dpi: the compile dominates)."""
+"""The animation command line (gvsjax.animate): dispatch to a task's ``animate`` and its keys, a
+throw's GIF (a few frames, small dpi: the compile dominates), bad input named with exit code 2.
+(The pick-and-place GIF is checked with its figure in test_pickplace.py: one compiled episode.)"""
 
 from __future__ import annotations
 
 import pytest
+from helpers import no_compile
 from PIL import Image
 
 from gvsjax import animate
@@ -23,13 +24,6 @@ def test_throw_gif_from_the_cli(tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
 
 
-def test_pickplace_gif_from_the_cli(tmp_path):
-    # 500 drawing steps per 5 s step, saved every 5th: 201 states over both steps, a frame every 5th (0.25 s)
-    out = tmp_path / "pp.gif"
-    assert animate.main(["task=pickplace", "action=0.5,0.6,-0.7,0.2", f"out={out}", "dpi=30"]) == 0
-    assert _frames(out) == 41
-
-
 @pytest.mark.parametrize("argv, word", [
     (["task=basketball", "T=5"], "T=5.0"),  # T outside [0.5, 3] s
     (["task=basketball", "delta=0.5"], "delta=0.5"),
@@ -41,7 +35,14 @@ def test_pickplace_gif_from_the_cli(tmp_path):
     (["speed=3"], "valid keys"),
 ])
 def test_bad_input_is_named(argv, word, capsys, tmp_path):
-    assert animate.main(argv + [f"out={tmp_path / 'never.gif'}"]) == 2
+    with no_compile():
+        assert animate.main(argv + [f"out={tmp_path / 'never.gif'}"]) == 2
     assert word in capsys.readouterr().err
     assert not (tmp_path / "never.gif").exists()
+
+
+def test_help_lists_each_tasks_keys(capsys):
+    assert animate.main(["--help"]) == 0
+    text = capsys.readouterr().out
+    assert "task=basketball: T=2.0 delta=0.9" in text and "task=pickplace: action=0.5,0.6,-0.7,0.2" in text
 

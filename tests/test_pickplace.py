@@ -11,6 +11,7 @@ import pytest
 from helpers import capture_figures, finite_line, no_compile
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from PIL import Image
 
 import gvsjax  # noqa: F401  (sets the XLA flag and x64 before JAX starts)
 from gvsjax.tasks import make
@@ -193,10 +194,11 @@ def test_blow_up_is_flagged_even_while_finite():
     assert not bool(info["valid"][0]) and bool(done[0]) and float(reward[0]) == 0.0
 
 
-def test_episode_figure_draws_the_episode_the_env_plays(env_and_params, tmp_path, monkeypatch):
+def test_episode_figure_and_gif_draw_the_episode_the_env_plays(env_and_params, tmp_path, monkeypatch):
     """Fig. 6 of a table row: finite arm shapes from the joint, both tip paths ending on the row's
-    targets (the drawing's 500 RK4 steps end within 0.2 mm of the env's), finite controls."""
-    _, P = env_and_params
+    targets (the drawing's 500 RK4 steps end within 0.2 mm of the env's), finite controls; and the
+    task's GIF (``animate``, the same drawn episode: one compiled program for both)."""
+    env, P = env_and_params
     captured = capture_figures(monkeypatch)
     actions = np.stack([P.pick_action[0], P.place_action[0]])
     targets = np.stack([P.pick[0], P.place[0]])
@@ -220,3 +222,8 @@ def test_episode_figure_draws_the_episode_the_env_plays(env_and_params, tmp_path
         assert curve["x"].size > 100 and np.all(np.isfinite(curve["x"])) and np.all(np.isfinite(curve["y"]))
     assert abs(angle[0]["y"][-1] - np.degrees(theta[1])) < 1e-6  # at rest on the commanded angle
     np.testing.assert_allclose(tension[0]["y"][[0, -1]], [0.0, pull[1]], atol=1e-9)  # ramps 0 N -> T2
+
+    # 500 drawing steps per 5 s step, saved every 5th: 201 states over both steps, a frame every 5th (0.25 s)
+    gif = env.animate(tmp_path / "pp.gif", action=",".join(str(a) for a in actions.ravel()), dpi=30)
+    with Image.open(gif) as im:
+        assert im.format == "GIF" and im.n_frames == 41
