@@ -107,7 +107,7 @@ def finite_line(lines: list[dict], label: str, min_points: int = 2) -> dict:
     return line
 
 
-def rigid_soft_chain(damping=0.0):
+def rigid_soft_chain(damping=0.0, n_gauss=4):
     """A rigid upper arm on a free shoulder, then a soft forearm on a free elbow, in 3D."""
     import gvsjax as gv
 
@@ -115,7 +115,7 @@ def rigid_soft_chain(damping=0.0):
                          joint=gv.Joint("revolute", (0.0, 0.0, 1.0)))
     fore = gv.SoftLink(length=0.6, radius=0.03, material=gv.Material(2e6, 1100.0, damping, 0.5),
                        basis=gv.StrainBasis(orders=(0, 1, 1, -1, -1, -1), kind="legendre"),
-                       joint=gv.Joint("revolute", (0.0, 1.0, 0.0)), n_gauss=4)
+                       joint=gv.Joint("revolute", (0.0, 1.0, 0.0)), n_gauss=n_gauss)
     return gv.Robot(links=(upper, fore), gravity=9.81,
                     loads=(gv.PointLoad(magnitude=2.0, link=1, X=0.5, direction=(0.0, 0.0, -1.0)),),
                     masses=(gv.PointMass(mass=0.2, link=1, X=1.0),))

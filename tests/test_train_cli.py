@@ -314,14 +314,24 @@ def _saved_step(path):
         return -1
 
 
-@pytest.fixture(scope="module")
+# every test of the two runs on one pytest-xdist worker, so the runs happen once
+RUNS_GROUP = pytest.mark.xdist_group("train_runs")
+
+
+@pytest.fixture(scope="session")  # not module: a worker may run other files between the group's tests
 def runs(tmp_path_factory):
-    """Two trainings of one config started together: a runs through; b is SIGKILLed once its
-    checkpoint is past the middle (config.json then garbled) and resumed to the end."""
+    """Two trainings of one config: a runs through; b, started once a is training, is SIGKILLed
+    once its checkpoint is past the middle (config.json then garbled) and resumed to the end."""
     root = tmp_path_factory.mktemp("runs")
-    procs = {name: _start(root / name) for name in "ab"}
-    ckpt = root / "b" / "checkpoint.ckpt"
     deadline = time.monotonic() + 900
+    procs = {"a": _start(root / "a")}
+    while _saved_step(root / "a" / "checkpoint.ckpt") < 1:  # b starts once a has compiled (and cached) its programs
+        if procs["a"].poll() is not None:
+            pytest.fail(f"run a ended before its first checkpoint: {_finish(procs['a'])}")
+        assert time.monotonic() < deadline, "run a wrote no checkpoint in 900 s"
+        time.sleep(0.01)
+    procs["b"] = _start(root / "b")
+    ckpt = root / "b" / "checkpoint.ckpt"
     while _saved_step(ckpt) < N_UPDATES // 2:
         if procs["b"].poll() is not None:
             pytest.fail(f"run b ended before the kill: {_finish(procs['b'])}")
@@ -349,6 +359,7 @@ def _comparable(rows):
     return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
 
 
+@RUNS_GROUP
 def test_killed_run_resumes_and_completes(runs):
     root, info = runs
     for name, (rc, text) in info["done"].items():
@@ -364,6 +375,7 @@ def test_killed_run_resumes_and_completes(runs):
     assert json.loads((b / "timing.json").read_text())["updates"] == N_UPDATES
 
 
+@RUNS_GROUP
 def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
     root, _ = runs
     a, b = root / "a", root / "b"
@@ -372,6 +384,7 @@ def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
             == checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"])  # weights, Adam, key, envs
 
 
+@RUNS_GROUP
 def test_same_config_and_seed_give_bit_identical_runs(runs):
     # b's rows up to the kill (over half the run) came from another process than a's
     root, info = runs
@@ -381,6 +394,7 @@ def test_same_config_and_seed_give_bit_identical_runs(runs):
     assert before == rows[: len(before)]
 
 
+@RUNS_GROUP
 @pytest.mark.parametrize("damage", ["truncate", "flip"])
 def test_resume_from_a_damaged_checkpoint_is_a_clear_error(runs, tmp_path, capsys, damage):
     root, _ = runs

@@ -165,6 +165,7 @@ def _tables(n_grid_T, n_grid_delta, cell, per_cell, sample_ds, per_path, base: B
 
 
 _CACHE: dict[tuple, dict] = {}  # tables of the default arm, per argument set
+_NOT_IN_TABLES = ("sim_dtype", "target_sampling")  # fields the tables do not depend on
 
 
 def make_params(n_grid_T: int = 128, n_grid_delta: int = 32, cell: float = 0.05,
@@ -190,7 +191,7 @@ def make_params(n_grid_T: int = 128, n_grid_delta: int = 32, cell: float = 0.05,
                             **overrides)
     exact = dataclasses.replace(base, sim_dtype="float64")  # the tables' paths: float64 whatever sim_dtype is
     key = (n_grid_T, n_grid_delta, cell, per_cell, sample_ds, per_path,
-           tuple(sorted((k, v) for k, v in overrides.items() if k != "sim_dtype")))
+           tuple(sorted((k, v) for k, v in overrides.items() if k not in _NOT_IN_TABLES)))
     if arm is not None:
         tables = _tables(n_grid_T, n_grid_delta, cell, per_cell, sample_ds, per_path, exact)
     else:

@@ -1,0 +1,40 @@
+"""Suite-wide setup: one JAX compilation cache for the whole run.
+
+Most of the suite's time is XLA compiling the unrolled GVS programs, and many tests
+(and the training runs they start as subprocesses, and the notebooks' kernels) compile
+the same program again. JAX's persistent cache lets every process of one run reuse a
+program another has compiled. The cache starts empty in a fresh temporary folder each
+run, so no result depends on an earlier run; set ``JAX_COMPILATION_CACHE_DIR`` yourself
+to keep one across runs.
+"""
+
+import gvsjax  # noqa: F401, I001  (first: it configures JAX)
+import os
+import shutil
+import tempfile
+
+import jax
+
+_OWNED = "GVSJAX_TEST_CACHE_OWNER"
+
+
+def pytest_configure(config):
+    # with -n, tests sharing an expensive fixture carry one xdist_group and run on one worker
+    if getattr(config.option, "dist", "no") == "load":
+        config.option.dist = "loadgroup"
+    if "JAX_COMPILATION_CACHE_DIR" not in os.environ:  # the first process of the run makes it
+        os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="gvsjax-test-jit-")
+        os.environ[_OWNED] = str(os.getpid())
+    # subprocesses (training runs, notebook kernels) read these from the environment
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
+    jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs",
+                      float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"]))
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes",
+                      int(os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"]))
+
+
+def pytest_unconfigure(config):
+    if os.environ.get(_OWNED) == str(os.getpid()):
+        shutil.rmtree(os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)
