@@ -19,9 +19,6 @@ _OWNED = "GVSJAX_TEST_CACHE_OWNER"
 
 
 def pytest_configure(config):
-    # with -n, tests sharing an expensive fixture carry one xdist_group and run on one worker
-    if getattr(config.option, "dist", "no") == "load":
-        config.option.dist = "loadgroup"
     if "JAX_COMPILATION_CACHE_DIR" not in os.environ:  # the first process of the run makes it
         os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="gvsjax-test-jit-")
         os.environ[_OWNED] = str(os.getpid())

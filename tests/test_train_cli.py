@@ -5,6 +5,7 @@ repeated (bit-identical). Bad arguments fail before anything compiles."""
 
 import gvsjax  # noqa: F401, I001  (first: it configures JAX)
 import csv
+import fcntl
 import json
 import math
 import os
@@ -314,15 +315,28 @@ def _saved_step(path):
         return -1
 
 
-# every test of the two runs on one pytest-xdist worker, so the runs happen once
-RUNS_GROUP = pytest.mark.xdist_group("train_runs")
-
-
-@pytest.fixture(scope="session")  # not module: a worker may run other files between the group's tests
+@pytest.fixture(scope="session")
 def runs(tmp_path_factory):
     """Two trainings of one config: a runs through; b, started once a is training, is SIGKILLed
-    once its checkpoint is past the middle (config.json then garbled) and resumed to the end."""
-    root = tmp_path_factory.mktemp("runs")
+    once its checkpoint is past the middle (config.json then garbled) and resumed to the end.
+
+    Made once per test run: under pytest-xdist the first worker to ask makes them in the run's
+    shared temporary folder (holding a lock) and the others read them."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        shared = tmp_path_factory.getbasetemp().parent  # one per test run, shared by its workers
+        with open(shared / "train_runs.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (shared / "train_runs" / "info.json").exists():
+                _make_runs(shared / "train_runs")
+        root = shared / "train_runs"
+    else:
+        root = tmp_path_factory.mktemp("train_runs")
+        _make_runs(root)
+    return root, json.loads((root / "info.json").read_text())
+
+
+def _make_runs(root):
+    root.mkdir(exist_ok=True)
     deadline = time.monotonic() + 900
     procs = {"a": _start(root / "a")}
     while _saved_step(root / "a" / "checkpoint.ckpt") < 1:  # b starts once a has compiled (and cached) its programs
@@ -346,7 +360,7 @@ def runs(tmp_path_factory):
     (root / "b" / "config.json").write_text('{"num_envs": 1, garbled')  # resume must not read it
     procs["b"] = _start(root / "b", "resume=true")
     info["done"] = {name: _finish(p) for name, p in procs.items()}
-    return root, info
+    (root / "info.json").write_text(json.dumps(info))
 
 
 def _complete_rows(path):
@@ -359,7 +373,6 @@ def _comparable(rows):
     return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
 
 
-@RUNS_GROUP
 def test_killed_run_resumes_and_completes(runs):
     root, info = runs
     for name, (rc, text) in info["done"].items():
@@ -375,7 +388,6 @@ def test_killed_run_resumes_and_completes(runs):
     assert json.loads((b / "timing.json").read_text())["updates"] == N_UPDATES
 
 
-@RUNS_GROUP
 def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
     root, _ = runs
     a, b = root / "a", root / "b"
@@ -384,7 +396,6 @@ def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
             == checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"])  # weights, Adam, key, envs
 
 
-@RUNS_GROUP
 def test_same_config_and_seed_give_bit_identical_runs(runs):
     # b's rows up to the kill (over half the run) came from another process than a's
     root, info = runs
@@ -394,7 +405,6 @@ def test_same_config_and_seed_give_bit_identical_runs(runs):
     assert before == rows[: len(before)]
 
 
-@RUNS_GROUP
 @pytest.mark.parametrize("damage", ["truncate", "flip"])
 def test_resume_from_a_damaged_checkpoint_is_a_clear_error(runs, tmp_path, capsys, damage):
     root, _ = runs
