@@ -54,9 +54,11 @@ from gvsjax.model import (  # noqa: E402
     PointWrench,
     RigidLink,
     Robot,
+    RoutedTendon,
     SoftLink,
     StrainBasis,
     Tendon,
+    TendonPath,
 )
 from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
 from gvsjax.simulation import simulate  # noqa: E402
@@ -66,7 +68,8 @@ from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
-    "Tendon", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory", "stable_step_estimate",
+    "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory",
+    "stable_step_estimate",
     "backbone", "frames", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",
 ]

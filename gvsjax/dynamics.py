@@ -21,9 +21,9 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import lie
-from gvsjax.kinematics import Point, coords, forward, grid_of, rest_strain, scaled_columns, strain
-from gvsjax.lie import add, const, dot, mul, sub, total, vadd, vscale
+from gvsjax import lie, tendons
+from gvsjax.kinematics import Point, coords, forward, grid_of
+from gvsjax.lie import add, const, dot, mul, sub, total, vadd
 from gvsjax.model import RigidLink, Robot, SoftLink
 
 # ----------------------------------------------------------------------------
@@ -173,33 +173,6 @@ def _point_of(points: list[Point], link: int, X: float, n_links: int) -> Point:
     raise ValueError(f"no sample point at X={X} of link {link}")
 
 
-def _tendon_force(robot: Robot, q: Sequence, tension: Sequence) -> list:
-    """Generalized tendon force -T * sum_i W_i Phi_i^T (d x t, t), t = unit(w x d + v)."""
-    n = robot.n_dofs
-    tau = [0] * n
-    slices = robot.dof_slices()
-    for td, T in zip(robot.tendons, tension):
-        li = td.link % len(robot.links)
-        link = robot.links[li]
-        _, s0, end = slices[li]
-        grid = grid_of(robot, li)
-        d = (0, mul(td.offset, const(td.direction[0])), mul(td.offset, const(td.direction[1])))
-        inv_L = 1.0 / link.length
-        for i in range(len(grid.X)):
-            if grid.w[i] == 0.0:
-                continue
-            cols = scaled_columns(grid.phi[i], inv_L)
-            xi = strain(cols, q[s0:end], rest_strain(link, float(grid.X[i])))
-            t_raw = vadd(lie.cross(xi[:3], d), xi[3:])
-            inv_norm = 1.0 / jnp.sqrt(lie.as_array(dot(t_raw, t_raw)))
-            t = vscale(inv_norm, t_raw)
-            screw = lie.cross(d, t) + t
-            coef = mul(mul(T, const(-grid.w[i])), link.length)
-            for k, col in enumerate(cols):
-                tau[s0 + k] = add(tau[s0 + k], mul(coef, dot(col, screw)))
-    return tau
-
-
 def _distributed(robot: Robot, pt: Point, t) -> tuple:
     """The distributed load at a soft sample point, per metre, in the section's frame."""
     R = jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R])
@@ -256,7 +229,7 @@ def mass_and_forces(
         for j in range(n):
             F[j] = add(F[j], dot(pt.J[j], wrench))
     K, D = stiffness_and_damping(robot)
-    tau = _tendon_force(robot, q, tension) if robot.tendons else [0] * n
+    tau = tendons.generalized_force(robot, q, tension) if robot.tendons else [0] * n
     for i, f in zip(robot.actuated, joint_force):
         tau[i] = add(tau[i], f)
     for j in range(n):

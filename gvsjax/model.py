@@ -242,6 +242,50 @@ class Tendon:
 
 
 @struct.dataclass
+class TendonPath:
+    """Where a routed tendon runs through soft link ``link``: from material point ``X0`` to
+    ``X1`` (X in [0, 1]) at the offset d(X) = (y, z), metres, in the section's frame.
+
+    The path is either ``offsets``, an (K, 2) array of (y, z) at the static material points
+    ``knots`` (increasing, first X0, last X1), joined by straight pieces (a leaf: it can be
+    batched and differentiated; a straight oblique cable is two knots, a converging one too);
+    or ``path``, a function ``X -> (y, z)`` written with ``jax.numpy`` (static: evaluated with
+    its X-derivative by forward-mode autodiff at the quadrature points; e.g. a helix).
+    ``n_quad`` Gauss points integrate each smooth piece.
+    """
+
+    offsets: Any = None
+    link: int = struct.field(pytree_node=False, default=-1)
+    knots: tuple = struct.field(pytree_node=False, default=())
+    path: Any = struct.field(pytree_node=False, default=None)
+    X0: float = struct.field(pytree_node=False, default=0.0)
+    X1: float = struct.field(pytree_node=False, default=1.0)
+    n_quad: int = struct.field(pytree_node=False, default=8)
+
+    @property
+    def pieces(self) -> tuple[tuple[float, float], ...]:
+        """The smooth pieces (X_start, X_end) the quadrature integrates separately."""
+        ends = self.knots if self.path is None else (self.X0, self.X1)
+        return tuple((float(a), float(b)) for a, b in zip(ends[:-1], ends[1:]))
+
+
+@struct.dataclass
+class RoutedTendon:
+    """A cable routed through the sections of consecutive soft links, one ``TendonPath`` per
+    link from base to tip. Its tension (an input, >= 0) pulls it at the start of the first
+    path; it is anchored at the end of the last. The load on the rod follows from the cable's
+    length l(q) (the arc length of the routed path in the deformed rod): the generalized force
+    is -T dl/dq, which holds the distributed load of the cable's curvature along the path and
+    the point forces where it ends and where its direction jumps (knots). The part of the
+    cable before its first path (towards the actuator) is taken not to change length.
+    Consecutive paths meet where one link ends (X1 = 1) and the next starts (X0 = 0); the
+    joint between them must be fixed, because a moving joint would change the length of
+    the cable's crossing, which this model does not include."""
+
+    paths: tuple = ()
+
+
+@struct.dataclass
 class PointWrench:
     """Where a 6-D wrench input acts: material point ``X`` of ``link``. Its value,
     (moment N m, force N), is an input of ``simulate`` (``wrench=``: a constant, a law

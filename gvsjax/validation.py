@@ -61,7 +61,7 @@ def integer(name: str, value: Any, low: int = 1) -> None:
 
 def check_robot(robot) -> None:
     """Physical sanity of every link, load, mass and tendon (concrete leaves only)."""
-    from gvsjax.model import SECTION_SHAPES, RigidLink, SoftLink
+    from gvsjax.model import SECTION_SHAPES, RigidLink, RoutedTendon, SoftLink, Tendon
 
     require(len(robot.links) >= 1, "links", robot.links, "at least one link")
     nonnegative("gravity", robot.gravity)
@@ -118,16 +118,80 @@ def check_robot(robot) -> None:
         require(-n <= pm.link < n, f"masses[{k}].link", pm.link, f"a link index in [-{n}, {n})")
         require(0.0 <= pm.X <= 1.0, f"masses[{k}].X", pm.X, "a material coordinate in [0, 1]")
     for k, td in enumerate(robot.tendons):
+        if isinstance(td, RoutedTendon):
+            _check_routed(robot, k, td)
+            continue
+        require(isinstance(td, Tendon), f"tendons[{k}]", type(td).__name__, "a Tendon or a RoutedTendon")
         require(-n <= td.link < n and isinstance(robot.links[td.link], SoftLink), f"tendons[{k}].link",
                 td.link, "the index of a soft link")
         finite(f"tendons[{k}].offset", td.offset)
         link = robot.links[td.link]
         half = link.radius if link.shape == "circle" else (link.width, link.height)
         if concrete(td.offset) and concrete(half) and concrete(link.taper):
-            inside = float(np.min(half)) * (1.0 if link.shape == "circle" else 0.5) * min(1.0, float(link.taper))
+            inside = _inside(link)
             require(abs(float(td.offset)) <= inside, f"tendons[{k}].offset", td.offset,
                     f"|offset| <= {inside:.4g} m, the section's smallest half-extent (the tendon runs inside)")
         require(math.isclose(math.hypot(*td.direction), 1.0, rel_tol=1e-9), f"tendons[{k}].direction",
                 td.direction, "a unit 2-vector in the section's (y, z) plane")
     for i in robot.prescribed:
         require(0 <= i < robot.n_dofs, "prescribed", robot.prescribed, f"DoF indices in [0, {robot.n_dofs})")
+
+
+def _inside(link) -> float:
+    """The section's smallest half-extent (m), where a cable may run."""
+    half = link.radius if link.shape == "circle" else (link.width, link.height)
+    return float(np.min(half)) * (1.0 if link.shape == "circle" else 0.5) * min(1.0, float(link.taper))
+
+
+def _check_routed(robot, k: int, td) -> None:
+    """A routed tendon's paths: soft links base to tip, joined where one link ends and the next
+    starts across a fixed joint, knots increasing, offsets of shape (K, 2) inside the section."""
+    from gvsjax.model import SoftLink, TendonPath
+
+    n = len(robot.links)
+    require(isinstance(td.paths, tuple) and len(td.paths) >= 1, f"tendons[{k}].paths", td.paths,
+            "a tuple of at least one TendonPath")
+    previous = None
+    for j, path in enumerate(td.paths):
+        name = f"tendons[{k}].paths[{j}]"
+        require(isinstance(path, TendonPath), name, type(path).__name__, "a TendonPath")
+        require(-n <= path.link < n and isinstance(robot.links[path.link], SoftLink), f"{name}.link", path.link,
+                "the index of a soft link")
+        li = path.link % n
+        link = robot.links[li]
+        integer(f"{name}.n_quad", path.n_quad)
+        if path.path is not None:
+            require(path.offsets is None and not path.knots, f"{name}.path", path.path,
+                    "a function X -> (y, z), given without offsets and knots")
+            require(callable(path.path), f"{name}.path", path.path, "a function X -> (y, z)")
+            require(0.0 <= path.X0 < path.X1 <= 1.0, f"{name}.X0, X1", (path.X0, path.X1), "0 <= X0 < X1 <= 1")
+            probe = np.linspace(path.X0, path.X1, 9)
+            d = np.stack([np.reshape(np.asarray(path.path(float(x)), dtype=float), (2,)) for x in probe])
+        else:
+            knots = np.asarray(path.knots, dtype=float)
+            require(knots.ndim == 1 and len(knots) >= 2 and bool(np.all(np.diff(knots) > 0))
+                    and knots[0] >= 0.0 and knots[-1] <= 1.0, f"{name}.knots", path.knots,
+                    "two or more increasing material points in [0, 1]")
+            require(path.offsets is not None, f"{name}.offsets", None, f"({len(knots)}, 2) offsets (y, z) in m")
+            if not concrete(path.offsets):
+                d = None
+            else:
+                d = _numbers(f"{name}.offsets", path.offsets, None)
+                require(d.shape == (len(knots), 2) and bool(np.all(np.isfinite(d))), f"{name}.offsets",
+                        path.offsets, f"finite values of shape ({len(knots)}, 2): (y, z) in m at each knot")
+        half = link.radius if link.shape == "circle" else (link.width, link.height)
+        if d is not None and concrete(half) and concrete(link.taper):
+            inside = _inside(link)
+            far = float(np.max(np.hypot(d[:, 0], d[:, 1])))
+            require(far <= inside + 1e-12, f"{name}.offsets", f"|d| up to {far:.4g} m",
+                    f"|d| <= {inside:.4g} m, the section's smallest half-extent (the cable runs inside)")
+        start = path.X0 if path.path is not None else float(path.knots[0])
+        stop = path.X1 if path.path is not None else float(path.knots[-1])
+        if previous is not None:
+            p_li, p_stop = previous
+            joint = link.joint
+            require(li == p_li + 1 and p_stop == 1.0 and start == 0.0 and joint.n_dofs == 0, f"{name}",
+                    f"link {li} from X={start}",
+                    f"the continuation of paths[{j - 1}]: link {p_li + 1} from X=0 after link {p_li} ended at X=1, "
+                    "across a fixed joint")
+        previous = (li, stop)
