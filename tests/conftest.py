@@ -32,6 +32,11 @@ def pytest_configure(config):
                       int(os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"]))
 
 
+def pytest_collection_modifyitems(config, items):
+    """Tests marked slow first: under pytest-xdist the workers then end on short tests."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 def pytest_unconfigure(config):
     if os.environ.get(_OWNED) == str(os.getpid()):
         shutil.rmtree(os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)

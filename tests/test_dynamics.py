@@ -62,6 +62,7 @@ def test_mass_matrix_at_rest_matches_closed_form():
     np.testing.assert_allclose(M, ref, atol=2e-6)
 
 
+@pytest.mark.slow
 def test_rigid_soft_chain_conserves_energy_with_free_joints():
     robot = rigid_soft_chain(n_gauss=2)  # conservation holds for any quadrature; 2 points compile fastest
     qd0 = np.zeros(robot.n_dofs)
@@ -94,6 +95,7 @@ def _loaded_rod(force_y=0.0, force_z=0.0, torque_x=0.0):
                               tip_load(torque_x, (1.0, 0.0, 0.0), moment=True)))
 
 
+@pytest.mark.slow
 def test_3d_rod_lateral_load_is_symmetric_and_matches_planar_bending():
     P = 3.0
     tip_y = np.asarray(_static_state(_loaded_rod(force_y=P)).tip[-1])

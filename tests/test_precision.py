@@ -62,6 +62,7 @@ def test_unsupported_dtype_is_named(dtype):
         gv.simulate(ARM, 0.1, n_steps=2, dtype=dtype)
 
 
+@pytest.mark.slow
 def test_tasks_with_a_float32_simulator_keep_float64_states_and_reach_the_same_outcome():
     """Both tasks with ``sim_dtype="float32"`` (what ``gvsjax.train sim_dtype=float32`` trains on): the
     env's outputs and carried state keep their float64 dtypes (PPO's scans carry them), and the

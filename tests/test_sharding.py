@@ -14,6 +14,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import gvsjax  # noqa: F401  (before JAX starts)
 
@@ -56,6 +57,7 @@ def workload() -> dict[str, np.ndarray]:
             "shard_rows": np.array([s.data.shape[0] for s in state.last_obs.addressable_shards])}
 
 
+@pytest.mark.slow
 def test_two_devices_equal_one_device(tmp_path):
     out = tmp_path / "two.npz"
     env = dict(os.environ)

@@ -111,6 +111,7 @@ def _release_x(T):
     return gv.simulate(arm, 0.2, 1e-3, base_angle=lambda t: THETA_F * (t / T) ** 2, save_every=200).tip[-1, 0]
 
 
+@pytest.mark.slow
 def test_simulate_with_a_concrete_dt_under_jit_vmap_and_grad():
     """With ``dt`` given (not ``n_steps``) the stability check evaluates eagerly inside a trace:
     ``simulate`` works under ``jit(vmap)`` and ``grad``, and still refuses a too-large dt there."""
@@ -137,6 +138,7 @@ def test_traced_inputs_skip_concrete_checks_but_run():
     assert out.shape == (2, 3) and np.all(np.isfinite(out))
 
 
+@pytest.mark.slow
 def test_gradients_match_central_differences():
     def tip_x(params):
         E, eta, P, theta_f = params

@@ -149,6 +149,7 @@ def test_task_defaults_are_the_tasks_ppo_defaults():
 # ----------------------------------------------------------------------------- a tiny run
 
 
+@pytest.mark.slow
 def test_tiny_run_resume_and_its_figures(tmp_path, capsys, monkeypatch):
     out = tmp_path / "run"
     figures = capture_figures(monkeypatch)
@@ -373,6 +374,7 @@ def _comparable(rows):
     return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
 
 
+@pytest.mark.slow
 def test_killed_run_resumes_and_completes(runs):
     root, info = runs
     for name, (rc, text) in info["done"].items():
@@ -396,6 +398,7 @@ def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(runs):
             == checkpoint.load_raw(a / "checkpoint.ckpt")["train_state"])  # weights, Adam, key, envs
 
 
+@pytest.mark.slow
 def test_same_config_and_seed_give_bit_identical_runs(runs):
     # b's rows up to the kill (over half the run) came from another process than a's
     root, info = runs
