@@ -45,7 +45,15 @@ _warn_if_backend_started()
 jax.config.update("jax_enable_x64", True)
 
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
-from gvsjax.kinematics import backbone, frames, jacobian_rates, jacobians, tip_state  # noqa: E402
+from gvsjax.kinematics import (  # noqa: E402
+    backbone,
+    end_row,
+    frames,
+    jacobian_rates,
+    jacobians,
+    sample_sites,
+    tip_state,
+)
 from gvsjax.model import (  # noqa: E402
     Joint,
     Material,
@@ -59,6 +67,7 @@ from gvsjax.model import (  # noqa: E402
     StrainBasis,
     Tendon,
     TendonPath,
+    axis_rotation,
 )
 from gvsjax.robots import PAPER_ARM, paper_arm, rod_3d  # noqa: E402
 from gvsjax.simulation import simulate  # noqa: E402
@@ -70,6 +79,7 @@ __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
     "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "rod_3d", "simulate", "Trajectory",
     "stable_step_estimate",
-    "backbone", "frames", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
+    "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
+    "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",
 ]

@@ -164,9 +164,15 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
     n = robot.n_dofs
     R = lie.const_mat(robot.base_rotation)
     p = zeros(3)
-    state = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
+    base = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
+    ends: list = []  # the state at each link's far end, where its children start
     points: list[Point] = []
     for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        parent = robot.parent(li)
+        state = base if parent < 0 else ends[parent]
+        if link.joint.mounted:
+            state = _advance(state, lie.const_mat(link.joint.rotation), tuple(const(a) for a in link.joint.offset),
+                             [], [], zeros(6), zeros(6), with_psi)
         for k, twist in enumerate(link.joint.twists()):
             phi_j = tuple(const(a) for a in twist)
             O = vscale(q[j0 + k], phi_j)
@@ -178,6 +184,7 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
         else:
             state = _rigid_link(li, link, state, points)
+        ends.append(state)
     return points
 
 
@@ -236,6 +243,23 @@ def _rigid_link(li, link: RigidLink, state, points):
 # array-level helpers
 
 
+def sample_sites(robot: Robot) -> list[tuple[int, float]]:
+    """(link index, material point X) of every row of ``backbone``/``frames``/``jacobians``,
+    in order: a soft link's grid points, a rigid link's centre of mass (X = 0.5) and end (X = 1)."""
+    sites: list[tuple[int, float]] = []
+    for li, link in enumerate(robot.links):
+        if isinstance(link, SoftLink):
+            sites += [(li, float(x)) for x in grid_of(robot, li).X]
+        else:
+            sites += [(li, 0.5), (li, 1.0)]
+    return sites
+
+
+def end_row(robot: Robot, link: int) -> int:
+    """The row of ``backbone``/``frames`` at link ``link``'s far end (X = 1)."""
+    return sample_sites(robot).index((link % len(robot.links), 1.0))
+
+
 def coords(robot: Robot, x: Any, name: str) -> jax.Array:
     """``x`` as an array of the robot's n coordinates. A wrong length would otherwise
     be silently cut or padded by the recursion; the check runs at trace time only."""
@@ -266,7 +290,8 @@ def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 
 def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """World position (3,) and linear velocity (3,) of the robot's last point."""
+    """World position (3,) and linear velocity (3,) of the robot's last point (the far end of
+    its last link)."""
     pt = forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False)[-1]
     vel = lie.matvec(pt.R, pt.eta[3:])
     return (

@@ -23,7 +23,19 @@ STRAIN_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
 
 
 _X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+_IDENTITY = (_X, _Y, _Z)
 JOINT_KINDS = ("revolute", "prismatic", "fixed", "universal", "spherical", "planar", "free")
+
+
+def axis_rotation(axis, angle: float) -> tuple:
+    """The 3x3 rotation by ``angle`` (rad) about the unit vector ``axis`` (Rodrigues), as
+    nested tuples, e.g. for ``Joint.rotation``."""
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not abs(np.linalg.norm(a) - 1.0) < 1e-9:
+        raise ValueError(f"axis={axis!r} must be a unit 3-vector")
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    R = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+    return tuple(tuple(float(v) for v in row) for row in R)
 
 
 @dataclass(frozen=True)
@@ -41,11 +53,18 @@ class Joint:
     recursion treats a multi-DoF joint as a chain of one-DoF joints with no
     length between them; the angle sets are singular where Euler angles are
     (e.g. the middle spherical angle at +-pi/2).
+
+    ``offset`` (m) and ``rotation`` (3x3, its columns the joint frame's axes)
+    place the joint's frame in the parent's end frame (the base frame for a link
+    on the base): SoRoSim's fixed transformation before a joint, which is how a
+    branch leaves its parent at an angle or from a point off the centreline.
     """
 
     kind: str = "revolute"
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     axis2: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple = _IDENTITY
 
     def __post_init__(self):
         if self.kind not in JOINT_KINDS:
@@ -54,6 +73,20 @@ class Joint:
             v = getattr(self, name)
             if len(v) != 3 or not abs(math.sqrt(sum(a * a for a in v)) - 1.0) < 1e-9:
                 raise ValueError(f"Joint.{name}={v!r} must be a unit 3-vector")
+        off = np.asarray(self.offset, dtype=float)
+        if off.shape != (3,) or not np.all(np.isfinite(off)):
+            raise ValueError(f"Joint.offset={self.offset!r} must be 3 finite numbers (m)")
+        rot = np.asarray(self.rotation, dtype=float)
+        if rot.shape != (3, 3) or not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) or np.linalg.det(rot) < 0:
+            raise ValueError(f"Joint.rotation={self.rotation!r} must be a 3x3 rotation matrix (orthonormal, det +1)")
+        # plain tuples keep the joint hashable: it is a static field of the robot
+        object.__setattr__(self, "offset", tuple(float(a) for a in off))
+        object.__setattr__(self, "rotation", tuple(tuple(float(a) for a in row) for row in rot))
+
+    @property
+    def mounted(self) -> bool:
+        """Whether the joint frame differs from the parent's end frame."""
+        return any(self.offset) or self.rotation != _IDENTITY
 
     @property
     def n_dofs(self) -> int:
@@ -271,16 +304,16 @@ class TendonPath:
 
 @struct.dataclass
 class RoutedTendon:
-    """A cable routed through the sections of consecutive soft links, one ``TendonPath`` per
-    link from base to tip. Its tension (an input, >= 0) pulls it at the start of the first
+    """A cable routed through the sections of a line of soft links (each the parent of the
+    next), one ``TendonPath`` per link from base to tip. Its tension (an input, >= 0) pulls it at the start of the first
     path; it is anchored at the end of the last. The load on the rod follows from the cable's
     length l(q) (the arc length of the routed path in the deformed rod): the generalized force
     is -T dl/dq, which holds the distributed load of the cable's curvature along the path and
     the point forces where it ends and where its direction jumps (knots). The part of the
     cable before its first path (towards the actuator) is taken not to change length.
-    Consecutive paths meet where one link ends (X1 = 1) and the next starts (X0 = 0); the
-    joint between them must be fixed, because a moving joint would change the length of
-    the cable's crossing, which this model does not include."""
+    Consecutive paths meet where one link ends (X1 = 1) and its child starts (X0 = 0); the
+    joint between them must be fixed (an offset or a rotation is allowed), because a moving
+    joint would change the length of the cable's crossing, which this model does not include."""
 
     paths: tuple = ()
 
@@ -299,7 +332,12 @@ class PointWrench:
 
 @struct.dataclass
 class Robot:
-    """A serial chain of links from a fixed base, with loads and tendons.
+    """A chain or a tree of links from a fixed base, with loads and tendons.
+
+    ``parents``: empty for a serial chain (each link starts at the previous
+    link's end), or one entry per link, the index of the link it starts from
+    (-1: the base), always an earlier link, so ``links`` lists a tree parents
+    first. The joint's ``offset``/``rotation`` places it in that end's frame.
 
     ``prescribed`` lists the indices (into q) of position-controlled DoFs;
     their motion is given to ``simulate`` and the rest is integrated.
@@ -325,6 +363,11 @@ class Robot:
         pytree_node=False, default=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     )
     prescribed: tuple = struct.field(pytree_node=False, default=())
+    parents: tuple = struct.field(pytree_node=False, default=())
+
+    def parent(self, i: int) -> int:
+        """The link that link ``i`` starts from, -1 for the base."""
+        return self.parents[i] if self.parents else i - 1
 
     @property
     def n_dofs(self) -> int:

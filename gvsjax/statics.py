@@ -241,7 +241,8 @@ def inverse_statics(robot: Robot, target_tip: Any, *, controls: Any = None, tens
                     prescribed0: Any = None, q0: Any = None, load_scale_steps: int = 1, tol: float = 1e-9,
                     max_iter: int = 50, equilibrium_tol: float = 1e-10,
                     equilibrium_max_iter: int = 50) -> InverseStaticsResult:
-    """Tendon tensions and/or prescribed DoF values whose equilibrium tip is ``target_tip``.
+    """Tendon tensions and/or prescribed DoF values whose equilibrium tip (the end of the
+    robot's last link) is ``target_tip``.
 
     target_tip: (3,) world position (m). controls: "tension", "prescribed" or
     both as a tuple (default: whatever the robot has); the rest stay at their

@@ -104,6 +104,12 @@ def check_robot(robot) -> None:
         else:
             raise ValueError(f"links[{i}]={type(link).__name__} is invalid: expected SoftLink or RigidLink")
     n = len(robot.links)
+    if robot.parents:
+        require(isinstance(robot.parents, tuple) and len(robot.parents) == n, "parents", robot.parents,
+                f"empty (a serial chain) or a tuple of {n} parent indices, one per link")
+        for i, parent in enumerate(robot.parents):
+            require(isinstance(parent, (int, np.integer)) and not isinstance(parent, bool) and -1 <= parent < i,
+                    f"parents[{i}]", parent, f"an int in [-1, {i - 1}] (-1: the base; else an earlier link)")
     for k, load in enumerate(robot.loads):
         finite(f"loads[{k}].magnitude", load.magnitude)
         require(-n <= load.link < n, f"loads[{k}].link", load.link, f"a link index in [-{n}, {n})")
@@ -190,8 +196,8 @@ def _check_routed(robot, k: int, td) -> None:
         if previous is not None:
             p_li, p_stop = previous
             joint = link.joint
-            require(li == p_li + 1 and p_stop == 1.0 and start == 0.0 and joint.n_dofs == 0, f"{name}",
-                    f"link {li} from X={start}",
-                    f"the continuation of paths[{j - 1}]: link {p_li + 1} from X=0 after link {p_li} ended at X=1, "
-                    "across a fixed joint")
+            require(robot.parent(li) == p_li and p_stop == 1.0 and start == 0.0 and joint.n_dofs == 0,
+                    f"{name}", f"link {li} from X={start}",
+                    f"the continuation of paths[{j - 1}]: a child of link {p_li} from X=0 after link {p_li} "
+                    "ended at X=1, across a fixed joint")
         previous = (li, stop)
