@@ -63,13 +63,11 @@ def test_unsupported_dtype_is_named(dtype):
 
 
 @pytest.mark.slow
-def test_tasks_with_a_float32_simulator_keep_float64_states_and_reach_the_same_outcome():
-    """Both tasks with ``sim_dtype="float32"`` (what ``gvsjax.train sim_dtype=float32`` trains on): the
-    env's outputs and carried state keep their float64 dtypes (PPO's scans carry them), and the
+def test_basketball_with_a_float32_simulator_keeps_float64_states_and_the_outcome():
+    """``sim_dtype="float32"`` (what ``gvsjax.train sim_dtype=float32`` trains on): the env's
+    outputs and carried state keep their float64 dtypes (PPO's scans carry them), and the
     outcome is float64's to within fp32's share of the 1 mm budget."""
-    from gvsjax.tasks import basketball as bb
     from gvsjax.tasks import make
-    from gvsjax.tasks import pickplace as pp
 
     key = jax.random.PRNGKey(0)
     keys = jax.random.split(key, 8)
@@ -83,18 +81,22 @@ def test_tasks_with_a_float32_simulator_keep_float64_states_and_reach_the_same_o
         assert a.dtype == b.dtype
     rewards = [np.asarray(o[2]) for o in outs]
     assert np.max(np.abs(rewards[0] - rewards[1])) < 2e-4  # exp(-2.2 cost), cost within 5e-5 m
-    tip64 = bb.release_state(p64, 1.7, 0.9)[0]
-    tip32 = bb.release_state(p32, 1.7, 0.9)[0]
-    assert tip32.dtype == jnp.float64 and float(jnp.linalg.norm(tip32 - tip64)) < 5e-5
 
+
+@pytest.mark.slow
+def test_pickplace_with_a_float32_simulator_keeps_float64_states_and_the_outcome():
+    from gvsjax.tasks import make
+    from gvsjax.tasks import pickplace as pp
+
+    keys = jax.random.split(jax.random.PRNGKey(0), 6)
     env = make("pickplace")
     P = pp.make_params(n_pairs=6, n_test=2, seed=3)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
     ends = []
     for p in (P, P.replace(sim_dtype="float32")):
         _, state = jax.vmap(env.reset_to, in_axes=(0, None))(jnp.stack([P.pick, P.place], 1), p)
-        _, s1, _, _, info1 = step(keys[:6], state, P.pick_action, p)
-        _, s2, _, _, info2 = step(keys[:6], s1, P.place_action, p)
+        _, s1, _, _, info1 = step(keys, state, P.pick_action, p)
+        _, s2, _, _, info2 = step(keys, s1, P.place_action, p)
         assert s1.q.dtype == s2.qd.dtype == jnp.float64
         ends.append((info1["distance"], info2["distance"]))
     # the table rows are exact in float64 (1e-9 m); float32 ends both steps within 0.05 mm
