@@ -143,10 +143,14 @@ def check_robot(robot) -> None:
         require(0 <= i < robot.n_dofs, "prescribed", robot.prescribed, f"DoF indices in [0, {robot.n_dofs})")
 
 
-def _inside(link) -> float:
-    """The section's smallest half-extent (m), where a cable may run."""
+def _inside(link, X: Any = None) -> Any:
+    """The section's smallest half-extent (m), where a cable may run: over the whole link,
+    or at the material points X (the taper scales it linearly)."""
     half = link.radius if link.shape == "circle" else (link.width, link.height)
-    return float(np.min(half)) * (1.0 if link.shape == "circle" else 0.5) * min(1.0, float(link.taper))
+    base = float(np.min(half)) * (1.0 if link.shape == "circle" else 0.5)
+    if X is None:
+        return base * min(1.0, float(link.taper))
+    return base * (1.0 + (float(link.taper) - 1.0) * np.asarray(X, dtype=float))
 
 
 def _check_routed(robot, k: int, td) -> None:
@@ -172,13 +176,16 @@ def _check_routed(robot, k: int, td) -> None:
             require(callable(path.path), f"{name}.path", path.path, "a function X -> (y, z)")
             require(0.0 <= path.X0 < path.X1 <= 1.0, f"{name}.X0, X1", (path.X0, path.X1), "0 <= X0 < X1 <= 1")
             probe = np.linspace(path.X0, path.X1, 9)
-            d = np.stack([np.reshape(np.asarray(path.path(float(x)), dtype=float), (2,)) for x in probe])
+            where = probe
+            with jax.ensure_compile_time_eval():  # concrete numbers also inside a jit trace
+                d = np.stack([np.reshape(np.asarray(path.path(float(x)), dtype=float), (2,)) for x in probe])
         else:
             knots = np.asarray(path.knots, dtype=float)
             require(knots.ndim == 1 and len(knots) >= 2 and bool(np.all(np.diff(knots) > 0))
                     and knots[0] >= 0.0 and knots[-1] <= 1.0, f"{name}.knots", path.knots,
                     "two or more increasing material points in [0, 1]")
             require(path.offsets is not None, f"{name}.offsets", None, f"({len(knots)}, 2) offsets (y, z) in m")
+            where = knots  # |d| is convex and the half-extent linear on a piece: its ends suffice
             if not concrete(path.offsets):
                 d = None
             else:
@@ -187,10 +194,11 @@ def _check_routed(robot, k: int, td) -> None:
                         path.offsets, f"finite values of shape ({len(knots)}, 2): (y, z) in m at each knot")
         half = link.radius if link.shape == "circle" else (link.width, link.height)
         if d is not None and concrete(half) and concrete(link.taper):
-            inside = _inside(link)
-            far = float(np.max(np.hypot(d[:, 0], d[:, 1])))
-            require(far <= inside + 1e-12, f"{name}.offsets", f"|d| up to {far:.4g} m",
-                    f"|d| <= {inside:.4g} m, the section's smallest half-extent (the cable runs inside)")
+            excess = np.hypot(d[:, 0], d[:, 1]) - _inside(link, where)
+            i = int(np.argmax(excess))
+            require(excess[i] <= 1e-12, f"{name}.offsets", f"|d| = {excess[i] + _inside(link, where[i]):.4g} m "
+                    f"at X = {where[i]:.3g}", f"|d| <= {_inside(link, where[i]):.4g} m there, the section's "
+                    "smallest half-extent (the cable runs inside)")
         start = path.X0 if path.path is not None else float(path.knots[0])
         stop = path.X1 if path.path is not None else float(path.knots[-1])
         if previous is not None:

@@ -202,6 +202,14 @@ def test_bad_paths_name_the_field(path, name):
     raises_naming(name, gv.simulate, robot, 0.1, 1e-3)
 
 
+def test_a_path_function_is_checked_inside_jit():
+    """The check evaluates a path function on concrete numbers also while jit traces."""
+    robot = _rod((-1, -1, 1, -1, -1, -1)).replace(tendons=(gv.RoutedTendon(paths=(gv.TendonPath(path=_helix,
+                                                                                                 link=0),)),))
+    shape = jax.eval_shape(jax.jit(lambda T: gv.simulate(robot, 0.01, n_steps=2, tendon_force=T).tip), 1.0)
+    assert shape.shape == (3, 3)
+
+
 def test_paths_must_continue_across_a_fixed_joint():
     robot = _rod((-1, -1, 1, -1, -1, -1), n_links=2, joint=gv.Joint("revolute"))
     off = np.zeros((2, 2))
