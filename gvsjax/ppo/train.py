@@ -233,7 +233,9 @@ def make_update(
     ``ceil(num_updates / updates_per_call)`` times without overshooting.
     """
     total = num_updates(config, env.episode_length)
-    one = lambda s: update(config, env, env_params, s)
+    # jitted so that eval_shape's trace below is reused by the cond: tracing a task's step
+    # (the unrolled simulator) costs seconds
+    one = jax.jit(lambda s: update(config, env, env_params, s))
 
     def skipped(s):
         shapes = jax.eval_shape(one, s)[1]
