@@ -1,10 +1,26 @@
-"""Ready-made robots. ``paper_arm`` is the 1 m soft arm of Armanini et al."""
+"""Ready-made robots. ``paper_arm`` is the 1 m soft arm of Armanini et al.; ``tendon_arm``
+a hanging 3D arm driven by routed tendons from a torque-controlled hub."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from gvsjax.model import Joint, Material, PointLoad, PointMass, Robot, SoftLink, StrainBasis, Tendon
+import jax.numpy as jnp
+import numpy as np
+
+from gvsjax.model import (
+    Joint,
+    Material,
+    PointLoad,
+    PointMass,
+    RigidLink,
+    Robot,
+    RoutedTendon,
+    SoftLink,
+    StrainBasis,
+    Tendon,
+    TendonPath,
+)
 from gvsjax.validation import check_robot, concrete, finite, nonnegative, positive, require
 
 # At joint angle 0 the rod's local x axis points along world -y (hanging).
@@ -107,4 +123,88 @@ def rod_3d(length=1.0, radius=0.05, youngs_modulus=5e6, density=1000.0, damping=
     return robot
 
 
-__all__ = ["paper_arm", "rod_3d", "PAPER_ARM", "HANGING"]
+TENDON_ARM = dict(
+    length=0.5,  # m, the soft link
+    radius=0.025,  # m at the base; circular section
+    taper=0.6,  # tip-to-base ratio of the radius
+    youngs_modulus=1e6,  # Pa
+    density=1000.0,  # kg/m^3
+    damping=3e4,  # Pa s, material damping eta (SoRoSim's convention)
+    poisson=0.5,
+    gravity=9.81,  # m/s^2, along world -y (the arm hangs)
+    bending_order=1,  # Legendre order of both bending curvatures (torsion is constant)
+    n_gauss=3,
+    hub_mass=0.5,  # kg, the rigid hub the soft link hangs from
+    hub_inertia=(5e-3, 2.5e-3, 2.5e-3),  # kg m^2, about its centre of mass (axis first)
+    hub_length=0.05,  # m
+    hub_damping=0.01,  # N m s/rad, viscous friction of the hub's bearing
+    tendon_offset=0.018,  # m from the midline at the base; it shrinks with the section
+    helix_turns=0.5,  # turns of the fourth tendon about the midline
+    tip_mass=0.0,  # kg, a payload at the tip (also weighed by gravity)
+)
+
+
+def tendon_arm(**overrides: Any) -> Robot:
+    """A hanging 3D tendon-driven arm: a rigid hub on a torque-controlled revolute joint about
+    the vertical, and a tapered soft link with four routed tendons.
+
+    q = (hub angle, torsion, then the two bending curvatures' Legendre coefficients); q = 0
+    hangs straight down along -y. ``robot.actuated`` is the hub (``joint_force``, N m);
+    hold it with ``.replace(prescribed=(0,))`` for position control or statics. Tendons (N,
+    in this order): three straight cables at 0, 120 and 240 degrees around the section
+    (angle from the local y axis towards z) converging with the taper, and a helical one of
+    ``helix_turns`` turns. Keyword overrides (SI units): see ``TENDON_ARM``.
+    """
+    unknown = sorted(set(overrides) - set(TENDON_ARM))
+    if unknown:
+        raise ValueError(f"tendon_arm got unknown parameter(s) {unknown}; valid: {sorted(TENDON_ARM)}")
+    p = {**TENDON_ARM, **overrides}
+    for key in ("length", "radius", "taper", "youngs_modulus", "density", "hub_mass", "hub_length",
+                "tendon_offset"):
+        positive(key, p[key])
+    positive("hub_inertia", p["hub_inertia"], (3,))
+    for key in ("damping", "gravity", "hub_damping", "tip_mass"):
+        nonnegative(key, p[key])
+    finite("helix_turns", p["helix_turns"])
+    require(isinstance(p["bending_order"], int) and not isinstance(p["bending_order"], bool)
+            and p["bending_order"] >= 0, "bending_order", p["bending_order"], "an int >= 0")
+    require(isinstance(p["n_gauss"], int) and not isinstance(p["n_gauss"], bool)
+            and p["n_gauss"] >= p["bending_order"] + 1, "n_gauss", p["n_gauss"],
+            f"an int >= bending_order + 1 = {p['bending_order'] + 1}")
+    for key in ("tendon_offset", "taper", "helix_turns"):  # they shape the helix, a static function of X
+        require(concrete(p[key]) and np.ndim(p[key]) == 0, key, p[key], "a concrete number (not traced)")
+    if concrete(p["radius"]):
+        require(float(p["tendon_offset"]) < float(p["radius"]), "tendon_offset", p["tendon_offset"],
+                f"< radius={float(p['radius'])} m (the tendons run inside the rod)")
+    d0 = float(p["tendon_offset"])
+    d1 = d0 * float(p["taper"])
+
+    def straight(angle: float) -> RoutedTendon:
+        u = np.array([np.cos(angle), np.sin(angle)])
+        return RoutedTendon(paths=(TendonPath(offsets=np.stack([d0 * u, d1 * u]), link=1, knots=(0.0, 1.0),
+                                              n_quad=4),))
+
+    turns = float(p["helix_turns"])
+    helix = lambda X: (d0 + (d1 - d0) * X) * jnp.stack([jnp.cos(2 * jnp.pi * turns * X),  # noqa: E731
+                                                         jnp.sin(2 * jnp.pi * turns * X)])
+    hub = RigidLink(mass=p["hub_mass"], inertia=p["hub_inertia"], com=(p["hub_length"] / 2, 0.0, 0.0),
+                    length=p["hub_length"], joint=Joint("revolute", (1.0, 0.0, 0.0)), joint_damping=p["hub_damping"])
+    soft = SoftLink(length=p["length"], radius=p["radius"], taper=p["taper"],
+                    material=Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"]),
+                    basis=StrainBasis(orders=(0, p["bending_order"], p["bending_order"], -1, -1, -1), kind="legendre"),
+                    joint=Joint("fixed"), n_gauss=p["n_gauss"])
+    robot = Robot(
+        links=(hub, soft),
+        gravity=p["gravity"],
+        # a zero payload is left out: every point mass adds to the compiled program
+        masses=() if concrete(p["tip_mass"]) and float(p["tip_mass"]) == 0.0 else (PointMass(mass=p["tip_mass"],
+                                                                                           link=1, X=1.0),),
+        tendons=tuple(straight(a) for a in (0.0, 2 * np.pi / 3, 4 * np.pi / 3))
+        + (RoutedTendon(paths=(TendonPath(path=helix, link=1, n_quad=8),)),),
+        base_rotation=HANGING,
+    )
+    check_robot(robot)
+    return robot
+
+
+__all__ = ["paper_arm", "rod_3d", "tendon_arm", "PAPER_ARM", "TENDON_ARM", "HANGING"]

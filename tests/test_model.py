@@ -1,4 +1,4 @@
-"""Robot descriptions (gvsjax.model, gvsjax.robots): ``paper_arm`` and ``rod_3d`` reject bad
+"""Robot descriptions (gvsjax.model, gvsjax.robots): ``paper_arm``, ``rod_3d`` and ``tendon_arm`` reject bad
 parameters with a ValueError naming the parameter, before anything is traced or compiled; the
 two strain bases describe the same arm."""
 
@@ -80,6 +80,31 @@ ROD_BAD = {
 def test_rod_3d_invalid(case):
     name, value = case
     raises_naming(name, gv.rod_3d, **{name: value})
+
+
+TENDON_ARM_BAD = {
+    **{k: not_positive for k in ("length", "radius", "taper", "youngs_modulus", "density", "hub_mass",
+                                 "hub_length")},
+    **{k: negative for k in ("damping", "gravity", "hub_damping", "tip_mass")},
+    "hub_inertia": st.one_of(not_positive.map(lambda v: (v, 1e-3, 1e-3)), st.just((1e-3, 1e-3))),
+    "helix_turns": not_finite,
+    "bending_order": st.one_of(st.integers(max_value=-1), st.floats(), st.booleans(), st.none()),
+    "n_gauss": st.one_of(st.integers(max_value=1), st.floats(), st.booleans(), st.none()),  # order 1 needs 2
+    "tendon_offset": st.one_of(not_positive, st.floats(min_value=0.025, allow_nan=False)),  # radius 0.025
+}
+
+
+@FAST
+@given(case=named(TENDON_ARM_BAD))
+@example(case=("tendon_offset", 0.03))  # outside the 25 mm section
+@example(case=("n_gauss", 1))
+def test_tendon_arm_invalid(case):
+    name, value = case
+    raises_naming(name, gv.tendon_arm, **{name: value})
+
+
+def test_tendon_arm_unknown_override_lists_the_valid_keys():
+    assert "helix_turns" in raises_naming("bogus", lambda: gv.tendon_arm(bogus=1.0))
 
 
 def test_monomial_and_legendre_give_the_same_arm():

@@ -1,6 +1,6 @@
 """Every notebook in notebooks/ is stored without outputs and runs in a fresh kernel ("python3",
 the environment's ipykernel) with a temporary working directory; a failing cell fails the test.
-The notebooks' compile time dominates (~150 s of CPU for all three).
+The notebooks' compile time dominates (~250 s of CPU for all four).
 """
 
 from __future__ import annotations
