@@ -293,7 +293,7 @@ def test_non_finite_weights_stop_training(bandit_tasks, tmp_path, capsys, monkey
 # ----------------------------------------------------------------------------- killed, resumed, repeated runs
 
 ROOT = Path(__file__).resolve().parents[1]
-N_UPDATES = 80  # 16 throws each, a checkpoint after every one; b is killed past the middle
+N_UPDATES = 40  # 16 throws each, a checkpoint after every one; b is killed past the middle
 SUB = ["task=basketball", "num_envs=16", "num_minibatches=2", "update_epochs=1",
        f"total_episodes={16 * N_UPDATES}", "progress=false", "eval_targets=0", "updates_per_call=1",
        "checkpoint_every=0", "seed=5"]
