@@ -107,6 +107,25 @@ def test_tendon_arm_unknown_override_lists_the_valid_keys():
     assert "helix_turns" in raises_naming("bogus", lambda: gv.tendon_arm(bogus=1.0))
 
 
+def test_tendon_arm_numbers_trace_under_jit_vmap_and_grad():
+    """Its physical numbers are leaves: the soft link's stiffness is E times a fixed matrix, so
+    d tr(K) / dE = tr(K) / E, batched over E and compiled."""
+    import jax
+    import jax.numpy as jnp
+
+    from gvsjax import dynamics
+
+    def trace_K(E):
+        arm = gv.tendon_arm(youngs_modulus=E)
+        return jnp.trace(dynamics.full_matrix(dynamics.stiffness_and_damping(arm)[0], arm.n_dofs))
+
+    E = jnp.array([0.5e6, 1e6, 2e6])
+    values = jax.jit(jax.vmap(trace_K))(E)
+    slopes = jax.jit(jax.vmap(jax.grad(trace_K)))(E)
+    np.testing.assert_allclose(slopes, values / E, rtol=1e-12)
+    np.testing.assert_allclose(values, values[1] * E / 1e6, rtol=1e-12)
+
+
 def test_monomial_and_legendre_give_the_same_arm():
     """Same span, same quadrature: the two bases are one model in other coordinates."""
     theta_f, T = np.deg2rad(210.0), 0.8
