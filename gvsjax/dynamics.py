@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie, tendons
-from gvsjax.kinematics import Point, coords, forward, grid_of
+from gvsjax.kinematics import Point, coords, forward, grid_of, point_at, rows
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd
 from gvsjax.model import RigidLink, Robot, SoftLink
 
@@ -147,30 +147,13 @@ def _rigid_inertia(link: RigidLink) -> tuple:
 def _add_body(M, F, pt: Point, inertia_diag: tuple, weight, gravity_world: tuple):
     """Accumulate W J^T Ms J into M and W J^T (Ms (g_body - psi) + ad_eta^T Ms eta) into F."""
     Ms = tuple(mul(weight, m) for m in inertia_diag)
-    grav_body = (0, 0, 0) + lie.matTvec(pt.R, gravity_world)
-    Ms_eta = tuple(mul(m, e) for m, e in zip(Ms, pt.eta))
-    wrench = vadd(
-        tuple(mul(m, lie.sub(g, s)) for m, g, s in zip(Ms, grav_body, pt.psi)),
-        lie.ad_transpose(pt.eta, Ms_eta),
-    )
+    wrench = _body_wrench(pt, Ms, gravity_world)
     MJ = [tuple(mul(m, a) for m, a in zip(Ms, col)) for col in pt.J]
     n = len(pt.J)
     for j in range(n):
         F[j] = add(F[j], dot(pt.J[j], wrench))
         for k in range(j + 1):
             M[j][k] = add(M[j][k], dot(pt.J[j], MJ[k]))
-
-
-def _point_of(points: list[Point], link: int, X: float, n_links: int) -> Point:
-    link %= n_links
-    best = [p for p in points if p.link == link and p.kind != "rigid"]
-    kinds = [p for p in points if p.link == link and p.kind == "rigid"]
-    for p in best:
-        if abs(p.X - X) < 1e-12:
-            return p
-    if kinds:  # rigid link: anything but X = 1 acts at the CoM
-        return kinds[0]
-    raise ValueError(f"no sample point at X={X} of link {link}")
 
 
 def _distributed(robot: Robot, pt: Point, t) -> tuple:
@@ -180,6 +163,35 @@ def _distributed(robot: Robot, pt: Point, t) -> tuple:
     eta = jnp.stack([lie.as_array(a) for a in pt.eta])
     w = jnp.reshape(robot.distributed(pt.X, R, p, eta, t), (6,))
     return tuple(w[k] for k in range(6))
+
+
+def _body_wrench(pt: Point, Ms: tuple, gravity_world: tuple) -> tuple:
+    """Ms (g_body - psi) + ad_eta^T Ms eta: the inertial and gravity wrench at a point."""
+    grav_body = (0, 0, 0) + lie.matTvec(pt.R, gravity_world)
+    Ms_eta = tuple(mul(m, e) for m, e in zip(Ms, pt.eta))
+    return vadd(
+        tuple(mul(m, lie.sub(g, s)) for m, g, s in zip(Ms, grav_body, pt.psi)),
+        lie.ad_transpose(pt.eta, Ms_eta),
+    )
+
+
+def _add_stacked_body(M, F, pt: Point, inertia_diag: tuple, gravity_world: tuple) -> None:
+    """``_add_body`` for a stacked point: the sums over rows and Jacobian columns run as
+    array operations, so their traced size is independent of both."""
+    Ms = tuple(mul(pt.weight, m) for m in inertia_diag)
+    w = _body_wrench(pt, Ms, gravity_world)
+    arr = lambda a: jnp.broadcast_to(lie.as_array(a), (pt.rows,))  # noqa: E731
+    live = [r for r in range(6) if not lie.is_zero(Ms[r])]
+    Fv = sum(jnp.einsum("i,ij->j", arr(w[r]), pt.J[r]) for r in range(6) if not lie.is_zero(w[r]))
+    Mm = sum(jnp.einsum("i,ij,ik->jk", arr(Ms[r]), pt.J[r], pt.J[r]) for r in live)
+    for j, a in enumerate(pt.cols):
+        if a < 0:
+            continue
+        if not isinstance(Fv, int):
+            F[j] = add(F[j], Fv[a])
+        for k, b in enumerate(pt.cols[: j + 1]):
+            if b >= 0 and not isinstance(Mm, int):
+                M[j][k] = add(M[j][k], Mm[a, b])
 
 
 def _add_wrench(F, pt: Point, wrench: Sequence, local: bool, weight=1.0) -> None:
@@ -208,21 +220,23 @@ def mass_and_forces(
     n_links = len(robot.links)
     for pt in points:
         link = robot.links[pt.link]
-        if pt.kind == "soft" and not lie.is_zero(pt.weight):
+        if pt.rows:
+            _add_stacked_body(M, F, pt, section(link, pt.X).inertia, g_world)
+        elif pt.kind == "soft" and not lie.is_zero(pt.weight):
             _add_body(M, F, pt, section(link, pt.X).inertia, pt.weight, g_world)
         elif pt.kind == "rigid":
             _add_body(M, F, pt, _rigid_inertia(link), 1.0, g_world)
     for pm in robot.masses:
-        pt = _point_of(points, pm.link, pm.X, n_links)
+        pt = point_at(points, pm.link, pm.X, n_links)
         _add_body(M, F, pt, (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0, g_world)
     if robot.distributed is not None:
-        for pt in points:
+        for pt in rows(points):  # the user's law sees one material point X (a float) at a time
             if pt.kind == "soft" and not lie.is_zero(pt.weight):
                 _add_wrench(F, pt, _distributed(robot, pt, t), True, pt.weight)
     for site, w in zip(robot.wrenches, wrench):
-        _add_wrench(F, _point_of(points, site.link, site.X, n_links), w, site.local)
+        _add_wrench(F, point_at(points, site.link, site.X, n_links), w, site.local)
     for load in robot.loads:
-        pt = _point_of(points, load.link, load.X, n_links)
+        pt = point_at(points, load.link, load.X, n_links)
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
         f_body = f if load.follower else lie.matTvec(pt.R, f)
         wrench = (f_body + (0, 0, 0)) if load.moment else ((0, 0, 0) + f_body)
@@ -282,21 +296,27 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     def body(pt, diag, weight):
         nonlocal kinetic, grav
         eta_M_eta = dot(pt.eta, tuple(mul(m, e) for m, e in zip(diag, pt.eta)))
-        kinetic = add(kinetic, mul(0.5, mul(weight, eta_M_eta)))
-        grav = sub(grav, mul(mul(weight, diag[3]), dot(g_world, pt.p)))
+        dk = mul(0.5, mul(weight, eta_M_eta))
+        dg = mul(mul(weight, diag[3]), dot(g_world, pt.p))
+        if pt.rows:
+            dk, dg = (a if lie.is_zero(a) else jnp.sum(a) for a in (dk, dg))
+        kinetic = add(kinetic, dk)
+        grav = sub(grav, dg)
 
     for pt in points:
         link = robot.links[pt.link]
-        if pt.kind == "soft" and not lie.is_zero(pt.weight):
+        if pt.rows:
+            body(pt, section(link, pt.X).inertia, pt.weight)
+        elif pt.kind == "soft" and not lie.is_zero(pt.weight):
             body(pt, section(link, pt.X).inertia, pt.weight)
         elif pt.kind == "rigid":
             body(pt, _rigid_inertia(link), 1.0)
     for pm in robot.masses:
-        body(_point_of(points, pm.link, pm.X, len(robot.links)), (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0)
+        body(point_at(points, pm.link, pm.X, len(robot.links)), (0, 0, 0, pm.mass, pm.mass, pm.mass), 1.0)
     for load in robot.loads:
         if load.follower or load.moment:
             continue  # follower loads and couples are left out (no simple potential)
-        pt = _point_of(points, load.link, load.X, len(robot.links))
+        pt = point_at(points, load.link, load.X, len(robot.links))
         f = tuple(mul(load.magnitude, const(c)) for c in load.direction)
         loads = sub(loads, dot(f, pt.p))
     K, _ = stiffness_and_damping(robot)

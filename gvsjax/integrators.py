@@ -28,7 +28,7 @@ the evaluations.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -154,6 +154,7 @@ def _imex_euler(system, t, q, qd, dt):
 _ARS443_E = jnp.array([[0.5, 0, 0, 0], [11 / 18, 1 / 18, 0, 0], [5 / 6, -5 / 6, 0.5, 0], [0.25, 1.75, 0.75, -1.75]])
 _ARS443_I = jnp.array([[0.0, 0, 0, 0], [0.0, 1 / 6, 0, 0], [0.0, -0.5, 0.5, 0], [0.0, 1.5, -1.5, 0.5]])
 _ARS443_C = jnp.array([0.5, 2 / 3, 0.5, 1.0])
+FOLD_MIN_DOFS = 4  # measured: 3D robots (6+ DoFs) gain, the paper's arm (2) loses (docs/speed.md)
 
 
 def _ars443(system, t, q, qd, dt):
@@ -164,9 +165,65 @@ def _ars443(system, t, q, qd, dt):
     holds, and every implicit stage is one SPD solve with the same matrix
     M0 + (dt/2) D + (dt/2)^2 K. The damping and bending modes, which bound
     RK4's step, then bound nothing: the step is set by accuracy alone.
-    Stages 1-3 run as a ``lax.scan`` (as RK4's do) so the dynamics appear once
-    in the compiled program.
+
+    Two layouts of the same arithmetic: from ``FOLD_MIN_DOFS`` free DoFs on, all
+    four evaluations of the dynamics run in one loop (``_ars443_folded``: the
+    dynamics traced once, half the compile time of a 3D robot and a faster
+    step); below, the step's start is evaluated before a 3-long loop
+    (``_ars443_split``: the fastest step for small planar robots).
     """
+    fn = _ars443_folded if len(q) >= FOLD_MIN_DOFS else _ars443_split
+    return fn(system, t, q, qd, dt)
+
+
+def _ars443_folded(system, t, q, qd, dt):
+    """``_ars443`` with the step's start as the first of four loop iterations, which
+    also keeps M0."""
+    n = len(q)
+    a = 0.5 * dt
+    dtype = jnp.result_type(*q)
+    tab_e, tab_i, tab_c = (x.astype(dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
+    t_eval = t + jnp.concatenate([jnp.zeros(1, dtype), tab_c[:3]]) * dt  # where iteration i evaluates
+    arr = lambda xs: jnp.stack([lie.as_array(x) for x in xs])  # noqa: E731
+    q0, qd0 = jnp.stack(q), jnp.stack(qd)
+    lower = [(i, j) for i in range(n) for j in range(i + 1)]
+
+    def body(carry, i):
+        # slots (5 x n): implicit q' and qd', explicit qd' per stage (slot 0 of the implicit
+        # parts has weight 0 in every stage, so it stays empty; slot 4 is never read)
+        g_q, g_v, e_v, e_prev, M0_prev, qi, vi = carry
+        # the previous iteration's explicit part enters its slot here, after crossing the
+        # loop boundary packed: written where it is computed, XLA would fuse the whole
+        # dynamics into that strided in-place update
+        e_v = e_v.at[jnp.maximum(i - 1, 0)].set(arr(_unpack(e_prev, n)))
+        M, f, K, D = system.parts(t_eval[i], tuple(qi[k] for k in range(n)), tuple(vi[k] for k in range(n)))
+        first = i == 0
+        M0: list[list[Any]] = [[0] * n for _ in range(n)]
+        for (r, c), old in zip(lower, M0_prev):
+            M0[r][c] = M0[c][r] = 0 if lie.is_zero(M[r][c]) else jnp.where(first, lie.as_array(M[r][c]), old)
+        # at the step's start the explicit part is M0^-1 (f + K q + D qd); later f's own
+        elastic = [lie.mul(jnp.where(first, 1.0, 0.0).astype(dtype), lie.add(x, y))
+                   for x, y in zip(lie.matvec(K, q), lie.matvec(D, qd))]
+        e = arr(lie.solve_spd(M, [lie.add(fi, el) for fi, el in zip(f, elastic)])) - g_v[i]
+        A = [[lie.add(lie.add(M0[r][c], lie.mul(a, D[r][c])), lie.mul(a * a, K[r][c])) for c in range(n)]
+             for r in range(n)]
+        Yq = q0 + dt * (tab_i[i] @ g_q[:4])
+        Yv = qd0 + dt * (tab_e[i] @ e_v[:4] + tab_e[i, i] * e + tab_i[i] @ g_v[:4])
+        M0_rows = tuple(map(tuple, M0))
+        m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(lie.matvec(M0_rows, tuple(Yv)), lie.matvec(K, tuple(Yq)))]
+        v = arr(lie.solve_spd(A, m))
+        M0_out = [jnp.asarray(lie.as_array(M0[r][c]), dtype) for r, c in lower]
+        return (g_q.at[i + 1].set(v), g_v.at[i + 1].set((v - Yv) / a), e_v, _pack(e), M0_out, Yq + a * v, v), None
+
+    zeros = jnp.zeros((5, n), dtype)
+    M0_init = [jnp.zeros((), dtype)] * len(lower)
+    carry0 = (zeros, zeros, zeros, _pack(jnp.zeros(n, dtype)), M0_init, q0, qd0)
+    (*_, q1, qd1), _ = jax.lax.scan(body, carry0, jnp.arange(4))
+    return tuple(q1[k] for k in range(n)), tuple(qd1[k] for k in range(n))  # stiffly accurate: the last stage
+
+
+def _ars443_split(system, t, q, qd, dt):
+    """``_ars443`` with the step's start evaluated before the loop over stages 1-3."""
     M, f, K, D = system.parts(t, q, qd)
     n = len(q)
     a = 0.5 * dt

@@ -93,8 +93,8 @@ def scaled_columns(raw: np.ndarray, inv_length) -> list[tuple]:
     ]
 
 
-def rest_strain(link: SoftLink, X: float) -> tuple:
-    """xi*(X) of a soft link (see ``SoftLink.rest_strain``)."""
+def rest_strain(link: SoftLink, X: Any) -> tuple:
+    """xi*(X) of a soft link (see ``SoftLink.rest_strain``); X a float or an array of points."""
     if link.rest_strain is None:
         return XI_STAR
     c = jnp.asarray(link.rest_strain)
@@ -129,10 +129,15 @@ class Point:
 
     kind: "soft" (a rod sample with quadrature weight ``weight``, physical
     metres), "rigid" (a rigid link's CoM) or "end" (a rigid link's far end).
+    rows > 0 marks a *stacked* point: all of a soft link's samples at once, X an
+    array of the ``rows`` material points and every non-zero scalar an array
+    with a leading axis of that length; J is then one 6-vector of (rows, m)
+    arrays, ``cols[k]`` the column of DoF k there (-1: J's column k is zero).
+    See ``uses_scan``.
     """
 
     link: int
-    X: float
+    X: Any
     kind: str
     weight: Any
     R: tuple
@@ -140,6 +145,8 @@ class Point:
     J: list
     eta: tuple
     psi: tuple
+    rows: int = 0
+    cols: tuple = ()
 
 
 def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
@@ -193,36 +200,83 @@ def _record(points, li, X, kind, weight, state):
     points.append(Point(li, X, kind, weight, R, p, J, eta, psi))
 
 
+def _magnus_step(link, state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
+    """Advance the state over one interval of length h (m): P1, P2 are the scaled basis
+    columns at the two Zanna points, rest1, rest2 the reference strains there."""
+    c = mul(lie.SQRT3 / 12.0, mul(h, h))
+    half_h = mul(0.5, h)
+    xi1, xi2 = strain(P1, qs, rest1), strain(P2, qs, rest2)
+    xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
+    # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
+    O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
+    Od = vadd(vscale(half_h, vadd(xd1, xd2)), vscale(c, vadd(lie.ad(xi1, xd2), lie.ad(xd1, xi2))))
+    Z = [
+        vadd(vscale(half_h, vadd(a, b)), vscale(c, lie.vsub(lie.ad(xi1, b), lie.ad(xi2, a))))
+        for a, b in zip(P1, P2)
+    ]
+    Zd_qd = vscale(mul(2.0, c), lie.ad(xd1, xd2))
+    T_out, T_rate = lie.dexp_and_rate(O, Od, Z + [Od, Zd_qd], rate_of=Od if with_psi else None)
+    S_cols, S_qd, T_Zd_qd = T_out[:-2], T_out[-2], T_out[-1]
+    Sdot_qd = vadd(T_rate, T_Zd_qd) if with_psi else None
+    R_s, p_s = lie.exp_se3(O)
+    return _advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
+
+
+def zanna_points(grid: LinkGrid) -> tuple[np.ndarray, np.ndarray]:
+    return grid.X[:-1] + ZANNA[0] * grid.dX, grid.X[:-1] + ZANNA[1] * grid.dX
+
+
 def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
+    from gvsjax import scan  # it builds on this module's helpers
+
+    if scan.uses_scan(link):
+        return scan.soft_link(robot, li, link, qs, qds, s0, state, points, with_psi)
     grid = grid_of(robot, li)
     L = link.length
     inv_L = 1.0 / L
     idx = list(range(s0, s0 + len(qs)))
+    x1, x2 = zanna_points(grid)
     _record(points, li, float(grid.X[0]), "soft", mul(const(grid.w[0]), L), state)
     for i in range(len(grid.dX)):
-        h = mul(const(grid.dX[i]), L)
-        c = mul(lie.SQRT3 / 12.0, mul(h, h))
-        half_h = mul(0.5, h)
         P1 = scaled_columns(grid.phi1[i], inv_L)
         P2 = scaled_columns(grid.phi2[i], inv_L)
-        x1, x2 = grid.X[i] + ZANNA[0] * grid.dX[i], grid.X[i] + ZANNA[1] * grid.dX[i]
-        xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
-        xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
-        # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
-        O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
-        Od = vadd(vscale(half_h, vadd(xd1, xd2)), vscale(c, vadd(lie.ad(xi1, xd2), lie.ad(xd1, xi2))))
-        Z = [
-            vadd(vscale(half_h, vadd(a, b)), vscale(c, lie.vsub(lie.ad(xi1, b), lie.ad(xi2, a))))
-            for a, b in zip(P1, P2)
-        ]
-        Zd_qd = vscale(mul(2.0, c), lie.ad(xd1, xd2))
-        T_out, T_rate = lie.dexp_and_rate(O, Od, Z + [Od, Zd_qd], rate_of=Od if with_psi else None)
-        S_cols, S_qd, T_Zd_qd = T_out[:-2], T_out[-2], T_out[-1]
-        Sdot_qd = vadd(T_rate, T_Zd_qd) if with_psi else None
-        R_s, p_s = lie.exp_se3(O)
-        state = _advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
+        h = mul(const(grid.dX[i]), L)
+        state = _magnus_step(link, state, P1, P2, rest_strain(link, float(x1[i])), rest_strain(link, float(x2[i])),
+                             h, qs, qds, idx, with_psi)
         _record(points, li, float(grid.X[i + 1]), "soft", mul(const(grid.w[i + 1]), L), state)
     return state
+
+
+def _row(pt: Point, i: int) -> Point:
+    take = lambda a: a if lie.is_zero(a) else a[i]  # noqa: E731
+    J = [zeros(6) if j < 0 else tuple(Jr[i, j] for Jr in pt.J) for j in pt.cols]
+    return Point(pt.link, float(pt.X[i]), pt.kind, take(pt.weight), tuple(tuple(map(take, r)) for r in pt.R),
+                 tuple(map(take, pt.p)), J, tuple(map(take, pt.eta)), tuple(map(take, pt.psi)))
+
+
+def rows(points: Sequence[Point]) -> list[Point]:
+    """The points with every stacked point split into its rows (one Point per sample)."""
+    out: list[Point] = []
+    for pt in points:
+        out += [_row(pt, i) for i in range(pt.rows)] if pt.rows else [pt]
+    return out
+
+
+def point_at(points: Sequence[Point], link: int, X: float, n_links: int) -> Point:
+    """The sample point at material point X of ``link`` (a rigid link's CoM for X < 1)."""
+    link %= n_links
+    mine = [p for p in points if p.link == link]
+    for p in mine:
+        if p.rows:
+            hit = np.flatnonzero(np.abs(p.X - X) < 1e-12)
+            if hit.size:
+                return _row(p, int(hit[0]))
+        elif p.kind != "rigid" and abs(p.X - X) < 1e-12:
+            return p
+    rigid = [p for p in mine if p.kind == "rigid"]
+    if rigid:  # rigid link: anything but X = 1 acts at the CoM
+        return rigid[0]
+    raise ValueError(f"no sample point at X={X} of link {link}")
 
 
 def _translate(state, offset):
@@ -276,14 +330,14 @@ def _scalars(robot: Robot, x: Any, name: str) -> list:
 def backbone(robot: Robot, q: jax.Array) -> jax.Array:
     """World positions of every sample point along the robot, shape (n_points, 3)."""
     q_s = _scalars(robot, q, "q")
-    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False))
     return jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
 
 
 def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World rotations (n_points, 3, 3) and positions (n_points, 3) of every sample point."""
     q_s = _scalars(robot, q, "q")
-    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False))
     R = jnp.stack([jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R]) for pt in pts])
     p = jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
     return R, p
@@ -292,7 +346,7 @@ def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
 def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World position (3,) and linear velocity (3,) of the robot's last point (the far end of
     its last link)."""
-    pt = forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False)[-1]
+    pt = rows(forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False)[-1:])[-1]
     vel = lie.matvec(pt.R, pt.eta[3:])
     return (
         jnp.stack([lie.as_array(a) for a in pt.p]),
@@ -303,7 +357,7 @@ def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax
 def jacobians(robot: Robot, q: jax.Array) -> jax.Array:
     """Body-frame geometric Jacobians at every sample point, shape (n_points, 6, n)."""
     q_s = _scalars(robot, q, "q")
-    pts = forward(robot, q_s, [0] * len(q_s), with_psi=False)
+    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False))
     return jnp.stack(
         [jnp.stack([jnp.stack([lie.as_array(a) for a in col]) for col in pt.J], axis=1) for pt in pts]
     )

@@ -96,6 +96,8 @@ def check_robot(robot) -> None:
             top = max(link.basis.orders)
             require(link.n_gauss >= top + 1, f"links[{i}].n_gauss", link.n_gauss,
                     f">= {top + 1} (highest basis order + 1), else K is under-integrated")
+            require(link.recursion in ("auto", "unrolled", "scan"), f"links[{i}].recursion", link.recursion,
+                    "'auto', 'unrolled' or 'scan'")
         elif isinstance(link, RigidLink):
             positive(f"links[{i}].mass", link.mass)
             positive(f"links[{i}].inertia", link.inertia)

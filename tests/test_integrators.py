@@ -93,3 +93,22 @@ def test_ars443_beyond_rk4_stability():
     assert gv.stable_step_estimate(ARM, "ars443", q0) == np.inf  # so simulate accepts dt = 75 ms
     assert gv.stable_step_estimate(ARM, "rk4", q0) < T3 / 40
     assert not np.linalg.norm(tip("rk4", 40) - ref) < 1.0  # RK4 at the same step: diverged (nan) or far off
+
+
+@pytest.mark.parametrize("robot", [gv.paper_arm(tip_force=5.886), gv.rod_3d(order=0, n_gauss=2, gravity=9.81)],
+                         ids=["paper_arm_prescribed_base", "spatial_rod"])
+def test_ars443_folded_and_split_layouts_are_one_scheme(robot):
+    """``ars443`` picks a loop layout by the number of free DoFs; both layouts must be the
+    same arithmetic: one step from a moving state agrees to rounding."""
+    law = lambda t: jnp.array([1.2 * t**2]) if robot.prescribed else jnp.zeros(0)  # noqa: E731
+    system = FreeDynamics(robot, law)
+    rng = np.random.default_rng(3)
+    n = len(robot.free)
+    q = tuple(jnp.asarray(x) for x in 0.3 * rng.normal(size=n))
+    qd = tuple(jnp.asarray(x) for x in rng.normal(size=n))
+    t, dt = jnp.asarray(0.4), 0.02
+    steps = {name: jax.jit(lambda q, qd, fn=getattr(integrators, name): fn(system, t, q, qd, dt))(q, qd)
+             for name in ("_ars443_folded", "_ars443_split")}
+    a, b = (np.concatenate([np.stack(x) for x in steps[k]]) for k in steps)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+    assert np.abs(b[n:] - np.stack(qd)).max() > 1e-3  # the step moved the state
