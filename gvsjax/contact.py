@@ -95,23 +95,31 @@ def points_for(length: float, curvature: float, error: float = 1e-3) -> int:
 # the law at one sample (broadcasts over leading axes)
 
 
-def _flat_area(depth, slope, u, lo, hi):
-    """Integral over [lo, hi] of max(0, depth - slope (w - u)) dw, and the length where > 0."""
-    s = jnp.where(jnp.abs(slope) < 1e-9, 1e-9, slope)
-    w0 = u + depth / s  # where the depth reaches 0
-    a = jnp.where(s > 0, lo, jnp.clip(w0, lo, hi))
-    b = jnp.where(s > 0, jnp.clip(w0, lo, hi), hi)
-    return (b - a) * (depth - s * ((a + b) / 2 - u)), b - a
+def _smooth_depth(gap, l):
+    return l * jax.nn.softplus(-gap / l)
 
 
-def _curved_area(depth, curv, u, centre, lo, hi):
-    """Integral over [lo, hi] of the parabola through (u, depth) peaking at ``centre`` with
-    curvature ``curv``, where positive, and the length where it is positive."""
-    peak = depth + 0.5 * curv * (u - centre) ** 2
+def _flat_area(gap, slope, u, lo, hi, l):
+    """For a gap linear along the piece (gap at u, d gap/du = slope): the integral over [lo, hi]
+    of the depth, smoothed at the deepest end and falling linearly from there while
+    positive; the length where it is positive, and its middle (where the force acts)."""
+    deep = jnp.where(slope > 0, lo, hi)
+    s = jnp.maximum(jnp.abs(slope), 1e-12)
+    peak = _smooth_depth(gap + slope * (deep - u), l)
+    length = jnp.minimum(peak / s, hi - lo)
+    middle = jnp.where(slope > 0, lo + length / 2, hi - length / 2)
+    return length * (peak - s * length / 2), length, middle
+
+
+def _curved_area(gap, curv, u, centre, lo, hi, l):
+    """For a gap growing like curv (w - centre)^2 / 2 about its minimum at ``centre`` (gap at u):
+    the integral over [lo, hi] of the depth (its peak smoothed), the length where it is
+    positive, and u (where the force acts)."""
+    peak = _smooth_depth(gap - 0.5 * curv * (u - centre) ** 2, l)
     half = jnp.sqrt(2.0 * peak / curv + TINY * TINY)
     a = jnp.clip(centre - half, lo, hi)
     b = jnp.clip(centre + half, lo, hi)
-    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a
+    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a, u
 
 
 def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
@@ -134,17 +142,17 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     for obs in obstacles:
         pc = obs.piece(p, tangent, lo_, hi_, t)
         g = pc.gap - radius
-        depth = l * jax.nn.softplus(-g / l)
+        if point:
+            area, length, u = _smooth_depth(g, l), 1.0, pc.u
+        elif isinstance(obs, (Plane, Box)):
+            area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
+            g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
+        else:
+            area, length, u = _curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
         chi = jax.nn.sigmoid(-g / l)
-        arm = pc.u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
+        arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
         v_rel = vel + jnp.cross(omega, arm) - pc.velocity
         v_n = jnp.sum(v_rel * pc.normal, axis=-1)
-        if point:
-            area, length = depth, 1.0
-        elif isinstance(obs, (Plane, Box)):
-            area, length = _flat_area(depth, pc.slope, pc.u, lo, hi)
-        else:
-            area, length = _curved_area(depth, pc.curvature, pc.u, pc.centre, lo, hi)
         f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
         v_t = v_rel - v_n[..., None] * pc.normal
         slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)

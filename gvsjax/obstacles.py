@@ -48,7 +48,8 @@ class Piece(NamedTuple):
     u: where the force acts along the piece (m); gap: signed distance from the
     centreline there to the surface (m; subtract the rod's radius for the
     contact gap); normal (..., 3): unit, from the obstacle towards the rod;
-    curvature: 1/R of the overlap profile along the piece (1/m, 0 when flat);
+    curvature: of the gap along the piece, gap ~ gap_min + curvature (u - centre)^2 / 2 (1/m;
+    0 when flat);
     centre: where along the (infinite) piece the profile peaks (m);
     slope: d(gap)/du along the piece for a flat profile; velocity (3,): the
     obstacle's translational velocity (m/s).
@@ -96,9 +97,8 @@ class Sphere:
         u = jnp.clip(centre, lo, hi)
         d = p + u[..., None] * t - c
         dist = _norm(d)
-        gap = dist - self.radius
-        curv = 1.0 / (jnp.asarray(self.radius) + jnp.zeros_like(gap))
-        return Piece(u, gap, d / dist[..., None], curv, centre, jnp.zeros_like(gap), v)
+        # along the piece the centreline's distance to c grows like sqrt(dist^2 + u^2)
+        return Piece(u, dist - self.radius, d / dist[..., None], 1.0 / dist, centre, jnp.zeros_like(dist), v)
 
 
 @struct.dataclass
@@ -128,10 +128,10 @@ class Capsule:
         sigma = jnp.clip((u * te + b2) / ee, 0.0, 1.0)
         d = r0 + u[..., None] * t - sigma[..., None] * e
         dist = _norm(d)
-        # along the piece the distance to the axis grows like sqrt(g^2 + u^2 sin^2): a crossing bar
-        # is a profile of radius R / sin^2; past the capsule's ends it is a sphere's
+        # along the piece the distance to the axis grows like sqrt(dist^2 + u^2 sin^2): a crossing
+        # bar is a profile of curvature sin^2 / dist; past the capsule's ends it is a sphere's
         inside = (sigma > 0.0) & (sigma < 1.0)
-        curv = jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / self.radius
+        curv = jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / dist
         return Piece(u, dist - self.radius, d / dist[..., None], curv, centre, jnp.zeros_like(dist), v)
 
 
