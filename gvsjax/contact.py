@@ -47,9 +47,9 @@ class Penalty:
     smoothing: length l of the softplus (m); friction: Coulomb's mu; slip_speed: the
     regularisation speed v_s (m/s) below which friction turns viscous (a creep)."""
 
-    stiffness: Any = 1e6
-    damping: Any = 2e3
-    smoothing: Any = 1e-4
+    stiffness: Any = 1e7
+    damping: Any = 5e3
+    smoothing: Any = 1e-5
     friction: Any = 0.0
     slip_speed: Any = 1e-2
 
@@ -75,7 +75,7 @@ class Contact:
 
     obstacles: tuple = ()
     rod: Penalty = Penalty()
-    site: Penalty = Penalty(stiffness=1e5, damping=200.0)
+    site: Penalty = Penalty(stiffness=1e5, damping=200.0, smoothing=1e-4)
     sites: tuple = ()
     n_points: int = struct.field(pytree_node=False, default=21)
 

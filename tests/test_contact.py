@@ -32,7 +32,7 @@ def ball(plane=None, **penalty) -> gv.Robot:
     """A body on a vertical prismatic joint (q = height of its centre) with a contact ball."""
     body = gv.RigidLink(mass=MASS, inertia=(1e-3,) * 3, joint=gv.Joint("prismatic", (0.0, 1.0, 0.0)))
     c = gv.Contact(obstacles=(plane or gv.Plane(),), sites=(gv.ContactSite(radius=BALL, link=0),),
-                   site=gv.Penalty(**{"stiffness": 1e5, "damping": 200.0, **penalty}))
+                   site=gv.Penalty(**{"stiffness": 1e5, "damping": 200.0, "smoothing": 1e-4, **penalty}))
     return gv.Robot(links=(body,), contact=c)
 
 
