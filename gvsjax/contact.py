@@ -176,10 +176,10 @@ def _stack(xs: list, n_c: int):
     return jnp.stack([jnp.broadcast_to(lie.as_array(x), ()) for x in xs])
 
 
-def _columns(raw: np.ndarray, inv_length) -> list[tuple]:
+def _columns(raw: np.ndarray, inv_length, dtype) -> list[tuple]:
     """``kinematics.scaled_columns`` for per-sample raw bases (n_c, 6, n): (n_c,) scalars."""
     return [tuple(0 if not np.any(raw[:, r, k]) else
-                  (jnp.asarray(raw[:, r, k]) * inv_length if r < 3 else jnp.asarray(raw[:, r, k]))
+                  (jnp.asarray(raw[:, r, k], dtype) * inv_length if r < 3 else jnp.asarray(raw[:, r, k], dtype))
                   for r in range(6)) for k in range(raw.shape[2])]
 
 
@@ -200,12 +200,13 @@ def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q,
     J = [tuple(_stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
     j0, s0, end = robot.dof_slices()[li]
     qs, qds = q[s0:end], qd[s0:end]
+    dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *qds, *p)))  # float32 runs stay float32
     L = link.length
-    h = jnp.asarray(dX) * L
+    h = jnp.asarray(dX, dtype) * L
     c = lie.SQRT3 / 12.0 * h * h
     x1, x2 = grid.X[base] + ZANNA[0] * dX, grid.X[base] + ZANNA[1] * dX
-    P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L)
-    P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L)
+    P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L, dtype)
+    P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L, dtype)
     xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
     xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
     O = vadd(vscale(0.5 * h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
@@ -240,10 +241,10 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
         n_c = len(Xc)
         Rs, ps, J, etas = _soft_samples(robot, li, link, points, q, qd)
         R, p, eta = _arrays(Rs, ps, etas, n_c)
-        half = 0.5 * (Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
+        half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
-        w, f, g = law(p, R, eta, _radius(link, Xc), lo, hi, contact.obstacles, contact.rod, t)
+        w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
         w6 = tuple(w[:, k] for k in range(6))
         for j, col in enumerate(J):
             F[j] = lie.add(F[j], _sum(lie.dot(col, w6)))
@@ -254,9 +255,10 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
         link = robot.links[site.link % n]
         pt = next(x for x in points if x.link == site.link % n and x.kind == "rigid")
         R, p, eta = (a[0] for a in _arrays(pt.R, pt.p, pt.eta, 1))
-        d = jnp.asarray(site.offset) - jnp.asarray(link.com)  # from the CoM, body frame
+        d = jnp.asarray(site.offset, p.dtype) - jnp.asarray(link.com, p.dtype)  # from the CoM, body frame
         eta_s = jnp.concatenate([eta[:3], eta[3:] + jnp.cross(eta[:3], d)])
-        w, f, g = law(p + R @ d, R, eta_s, jnp.asarray(site.radius), None, None, contact.obstacles, contact.site, t)
+        w, f, g = law(p + R @ d, R, eta_s, jnp.asarray(site.radius, p.dtype), None, None, contact.obstacles,
+                      contact.site, t)
         w = jnp.concatenate([w[:3] + jnp.cross(d, w[3:]), w[3:]])  # moved to the CoM
         for j, col in enumerate(pt.J):
             F[j] = lie.add(F[j], lie.dot(col, tuple(w[k] for k in range(6))))
@@ -269,9 +271,9 @@ def _sum(x):
     return 0 if lie.is_zero(x) else jnp.sum(x)
 
 
-def _radius(link: SoftLink, X):
+def _radius(link: SoftLink, X, dtype):
     half = link.radius if link.shape == "circle" else 0.5 * jnp.hypot(link.width, link.height)
-    return half * (1.0 + (link.taper - 1.0) * jnp.asarray(X))
+    return half * (1.0 + (link.taper - 1.0) * jnp.asarray(X, dtype))
 
 
 def report(robot: Robot, q, qd, t) -> tuple[jax.Array, jax.Array]:

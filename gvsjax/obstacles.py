@@ -33,11 +33,11 @@ def _dot(a, b):
     return jnp.sum(a * b, axis=-1)
 
 
-def _shift(motion: Callable | None, t) -> tuple[Any, Any]:
+def _shift(motion: Callable | None, t, dtype) -> tuple[Any, Any]:
     """Displacement (3,) and velocity (3,) of a moving obstacle at t (zeros when static)."""
     if motion is None:
         return 0.0, 0.0
-    t = jnp.asarray(t)
+    t = jnp.asarray(t, dtype)
     x, v = jax.jvp(lambda s: jnp.reshape(jnp.asarray(motion(s), dtype=t.dtype), (3,)), (t,), (jnp.ones_like(t),))
     return x, v
 
@@ -74,9 +74,9 @@ class Plane:
     motion: Any = struct.field(pytree_node=False, default=None)
 
     def piece(self, p, t, lo, hi, time) -> Piece:
-        x0, v = _shift(self.motion, time)
-        n = jnp.asarray(self.normal) / _norm(jnp.asarray(self.normal))
-        gap = _dot(p - (jnp.asarray(self.point) + x0), n)
+        x0, v = _shift(self.motion, time, p.dtype)
+        n = jnp.asarray(self.normal, p.dtype) / _norm(jnp.asarray(self.normal, p.dtype))
+        gap = _dot(p - (jnp.asarray(self.point, p.dtype) + x0), n)
         zero = jnp.zeros_like(gap)
         # the gap is linear along the piece: the law integrates it exactly; the force acts at u = 0
         return Piece(zero, gap, jnp.broadcast_to(n, p.shape), zero, zero, _dot(t, n), v)
@@ -91,8 +91,8 @@ class Sphere:
     motion: Any = struct.field(pytree_node=False, default=None)
 
     def piece(self, p, t, lo, hi, time) -> Piece:
-        x0, v = _shift(self.motion, time)
-        c = jnp.asarray(self.centre) + x0
+        x0, v = _shift(self.motion, time, p.dtype)
+        c = jnp.asarray(self.centre, p.dtype) + x0
         centre = _dot(c - p, t)  # the piece's nearest approach to c, unclamped
         u = jnp.clip(centre, lo, hi)
         d = p + u[..., None] * t - c
@@ -112,9 +112,9 @@ class Capsule:
     motion: Any = struct.field(pytree_node=False, default=None)
 
     def piece(self, p, t, lo, hi, time) -> Piece:
-        x0, v = _shift(self.motion, time)
-        a = jnp.asarray(self.start) + x0
-        e = jnp.asarray(self.end) - jnp.asarray(self.start)
+        x0, v = _shift(self.motion, time, p.dtype)
+        a = jnp.asarray(self.start, p.dtype) + x0
+        e = jnp.asarray(self.end, p.dtype) - jnp.asarray(self.start, p.dtype)
         ee = _dot(e, e)
         r0 = p - a
         te, b1, b2 = _dot(t, e), _dot(t, r0), _dot(e, r0)
@@ -147,9 +147,9 @@ class Box:
 
     def sdf(self, x, x0=0.0):
         """Signed distance (m) and outward unit normal (world) at world points x (..., 3)."""
-        Rb = jnp.asarray(self.rotation)
-        h = jnp.asarray(self.half_extents)
-        q = (x - (jnp.asarray(self.centre) + x0)) @ Rb  # box coordinates
+        Rb = jnp.asarray(self.rotation, x.dtype)
+        h = jnp.asarray(self.half_extents, x.dtype)
+        q = (x - (jnp.asarray(self.centre, x.dtype) + x0)) @ Rb  # box coordinates
         a = jnp.abs(q) - h
         outside = jnp.maximum(a, 0.0) * jnp.sign(q)
         d_out = _norm(outside)
@@ -160,8 +160,8 @@ class Box:
         return jnp.where(is_out, d_out, worst), n_local @ Rb.T
 
     def piece(self, p, t, lo, hi, time) -> Piece:
-        x0, v = _shift(self.motion, time)
-        centre = _dot(jnp.asarray(self.centre) + x0 - p, t)
+        x0, v = _shift(self.motion, time, p.dtype)
+        centre = _dot(jnp.asarray(self.centre, p.dtype) + x0 - p, t)
         u = jnp.clip(centre, lo, hi)
         gap, n = self.sdf(p + u[..., None] * t, x0)
         # faces are flat: the law spreads the penalty over the piece (linear in u across a face)

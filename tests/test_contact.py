@@ -211,3 +211,14 @@ def test_vmap_over_plane_heights_and_grad_of_the_rest_height_with_respect_to_the
 def test_bad_contact_input_names_the_parameter_before_compiling(make, name):
     robot = gv.paper_arm().replace(contact=make())
     raises_naming(name, gv.simulate, robot, 0.1, 1e-3)
+
+
+def test_float32_run_with_contact_stays_float32_and_matches_float64():
+    link = gv.SoftLink(length=1.0, radius=0.02, material=gv.Material(1e9, 1000.0, 0.0, 0.5), joint=gv.Joint("fixed"),
+                       basis=gv.StrainBasis(orders=(-1, -1, 1, -1, -1, -1)), n_gauss=2)
+    robot = gv.Robot(links=(link,), gravity=G, contact=gv.Contact(obstacles=(gv.Plane(point=(0.0, -0.03, 0.0)),),
+                                                                  n_points=5))
+    runs = [gv.simulate(robot, 0.05, n_steps=1000, dtype=d, check_stability=False) for d in (jnp.float32, jnp.float64)]
+    assert runs[0].contact_gap.dtype == jnp.float32 and runs[0].q.dtype == jnp.float32
+    assert float(runs[1].contact_gap[-1, -1]) < 0  # the tip has reached the plane
+    np.testing.assert_allclose(np.asarray(runs[0].contact_gap), np.asarray(runs[1].contact_gap), atol=2e-6)
