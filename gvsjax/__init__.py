@@ -44,6 +44,7 @@ _warn_if_backend_started()
 # throughput (docs/physics.md, "Precision").
 jax.config.update("jax_enable_x64", True)
 
+from gvsjax.contact import Box, Capsule, Contact, ContactSite, Penalty, Plane, Sphere  # noqa: E402
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
 from gvsjax.kinematics import (  # noqa: E402
     backbone,
@@ -82,4 +83,5 @@ __all__ = [
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",
+    "Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box",
 ]

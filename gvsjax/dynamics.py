@@ -1,7 +1,8 @@
 """Generalized dynamics of a GVS robot: M(q) qdd = F(q, qd, t).
 
-F gathers gravity, Coriolis/centrifugal forces (-C qd), point loads, the
-elastic and Kelvin-Voigt forces (-K q - D qd) and tendon actuation. K and D
+F gathers gravity, Coriolis/centrifugal forces (-C qd), point loads, contact
+(``gvsjax.contact``), the elastic and Kelvin-Voigt forces (-K q - D qd) and
+tendon actuation. K and D
 are constant (the reference strain is kept out of Phi q) and are assembled
 once per call from the material; everything is differentiable in the robot's
 leaves (E, eta, loads, sizes ...).
@@ -21,7 +22,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import lie, tendons
+from gvsjax import contact, lie, tendons
 from gvsjax.kinematics import Point, coords, forward, grid_of, point_at, rows
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd
 from gvsjax.model import RigidLink, Robot, SoftLink
@@ -210,7 +211,7 @@ def mass_and_forces(
     q, qd: n scalars each; tension: one value per tendon (N, >= 0); joint_force:
     one generalized force per ``robot.actuated`` coordinate (N m or N), or empty;
     wrench: one 6-vector (moment, force) per ``robot.wrenches`` entry, or empty;
-    t: the time the distributed load is evaluated at.
+    t: the time the distributed load and moving obstacles are evaluated at.
     """
     n = robot.n_dofs
     points = forward(robot, q, qd, with_psi=True)
@@ -233,6 +234,8 @@ def mass_and_forces(
         for pt in rows(points):  # the user's law sees one material point X (a float) at a time
             if pt.kind == "soft" and not lie.is_zero(pt.weight):
                 _add_wrench(F, pt, _distributed(robot, pt, t), True, pt.weight)
+    if robot.contact is not None:
+        F = [add(f, c) for f, c in zip(F, contact.evaluate(robot, rows(points), q, qd, t)[0])]
     for site, w in zip(robot.wrenches, wrench):
         _add_wrench(F, point_at(points, site.link, site.X, n_links), w, site.local)
     for load in robot.loads:

@@ -149,8 +149,9 @@ class Point:
     cols: tuple = ()
 
 
-def _advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
-    """One step g <- g exp(O): update pose, J, eta, psi (docs/physics.md, Magnus steps)."""
+def advance(state, R_s, p_s, S_cols, cols_idx, S_qd, Sdot_qd, with_psi):
+    """One step g <- g exp(O) = (R_s, p_s): add the step's Jacobian columns S_cols to J's
+    columns idx, then update pose, J, eta and psi (docs/physics.md, Magnus steps)."""
     R, p, J, eta, psi = state
     J = list(J)
     for k, col in zip(cols_idx, S_cols):
@@ -178,7 +179,7 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
         parent = robot.parent(li)
         state = base if parent < 0 else ends[parent]
         if link.joint.mounted:
-            state = _advance(state, lie.const_mat(link.joint.rotation), tuple(const(a) for a in link.joint.offset),
+            state = advance(state, lie.const_mat(link.joint.rotation), tuple(const(a) for a in link.joint.offset),
                              [], [], zeros(6), zeros(6), with_psi)
         for k, twist in enumerate(link.joint.twists()):
             phi_j = tuple(const(a) for a in twist)
@@ -186,7 +187,7 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
             Od = vscale(qd[j0 + k], phi_j)
             R_s, p_s = lie.exp_se3(O)
             # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
-            state = _advance(state, R_s, p_s, [phi_j], [j0 + k], Od, zeros(6), with_psi)
+            state = advance(state, R_s, p_s, [phi_j], [j0 + k], Od, zeros(6), with_psi)
         if isinstance(link, SoftLink):
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
         else:
@@ -200,14 +201,18 @@ def _record(points, li, X, kind, weight, state):
     points.append(Point(li, X, kind, weight, R, p, J, eta, psi))
 
 
-def _magnus_step(link, state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
-    """Advance the state over one interval of length h (m): P1, P2 are the scaled basis
-    columns at the two Zanna points, rest1, rest2 the reference strains there."""
+def magnus(xi1, xi2, xd1, xd2, P1, P2, h, with_psi: bool):
+    """One 4th-order Magnus (Zanna) step over an interval of length h (m), from the
+    strains xi1, xi2 and their rates xd1, xd2 at the two collocation points and the
+    scaled basis columns P1, P2 there (6-tuples; any scalar may be an array, e.g.
+    one per interval or per column).
+
+    Returns (R_s, p_s) = exp(O), the columns S of the step's Jacobian, S qd and,
+    with ``with_psi``, Sdot qd (else None).
+    """
     c = mul(lie.SQRT3 / 12.0, mul(h, h))
     half_h = mul(0.5, h)
-    xi1, xi2 = strain(P1, qs, rest1), strain(P2, qs, rest2)
-    xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
-    # Zanna 4th-order Magnus: O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
+    # O = h/2 (xi1 + xi2) + sqrt(3) h^2/12 [xi1, xi2]
     O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
     Od = vadd(vscale(half_h, vadd(xd1, xd2)), vscale(c, vadd(lie.ad(xi1, xd2), lie.ad(xd1, xi2))))
     Z = [
@@ -219,7 +224,16 @@ def _magnus_step(link, state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
     S_cols, S_qd, T_Zd_qd = T_out[:-2], T_out[-2], T_out[-1]
     Sdot_qd = vadd(T_rate, T_Zd_qd) if with_psi else None
     R_s, p_s = lie.exp_se3(O)
-    return _advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
+    return R_s, p_s, S_cols, S_qd, Sdot_qd
+
+
+def _magnus_step(state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
+    """Advance the state over one interval of length h (m): P1, P2 are the scaled basis
+    columns at the two Zanna points, rest1, rest2 the reference strains there."""
+    xi1, xi2 = strain(P1, qs, rest1), strain(P2, qs, rest2)
+    xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
+    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, xd1, xd2, P1, P2, h, with_psi)
+    return advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
 
 
 def zanna_points(grid: LinkGrid) -> tuple[np.ndarray, np.ndarray]:
@@ -241,7 +255,7 @@ def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         P1 = scaled_columns(grid.phi1[i], inv_L)
         P2 = scaled_columns(grid.phi2[i], inv_L)
         h = mul(const(grid.dX[i]), L)
-        state = _magnus_step(link, state, P1, P2, rest_strain(link, float(x1[i])), rest_strain(link, float(x2[i])),
+        state = _magnus_step(state, P1, P2, rest_strain(link, float(x1[i])), rest_strain(link, float(x2[i])),
                              h, qs, qds, idx, with_psi)
         _record(points, li, float(grid.X[i + 1]), "soft", mul(const(grid.w[i + 1]), L), state)
     return state
@@ -280,7 +294,7 @@ def point_at(points: Sequence[Point], link: int, X: float, n_links: int) -> Poin
 
 
 def _translate(state, offset):
-    return _advance(state, lie.IDENTITY3, offset, [], [], zeros(6), zeros(6), True)
+    return advance(state, lie.IDENTITY3, offset, [], [], zeros(6), zeros(6), True)
 
 
 def _rigid_link(li, link: RigidLink, state, points):

@@ -357,6 +357,7 @@ class Robot:
     rotation R (3, 3) and position p (3,), its body twist eta (6,) and the time
     (``gvsjax.loads`` has drag and uniform-force helpers). Static: a new
     function recompiles.
+    ``contact``: None, or a ``gvsjax.contact.Contact`` (obstacles and the penalty law).
     """
 
     links: tuple
@@ -365,6 +366,7 @@ class Robot:
     masses: tuple = ()
     tendons: tuple = ()
     wrenches: tuple = ()
+    contact: Any = None
     distributed: Any = struct.field(pytree_node=False, default=None)
     gravity_direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
     base_rotation: tuple = struct.field(

@@ -17,8 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import XI_STAR, Point, grid_of, rest_strain, zanna_points
-from gvsjax.lie import mul, vadd, vscale, zeros
+from gvsjax.kinematics import XI_STAR, Point, grid_of, magnus, rest_strain, zanna_points
+from gvsjax.lie import mul, vadd, zeros
 from gvsjax.model import SoftLink
 
 # "auto" scans a soft link with at least this many strain DoFs and Gauss points (docs/speed.md)
@@ -80,20 +80,12 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         P1, P2 = (tuple(mul(x[k][r], scale[r]) if active[r] else 0 for r in range(6)) for k in ("phi1", "phi2"))
         rest1, rest2 = (XI_STAR, XI_STAR) if link.rest_strain is None else (
             tuple(x["rest1"][r] for r in range(6)), tuple(x["rest2"][r] for r in range(6)))
-        h = mul(x["h"], L)
-        c = mul(lie.SQRT3 / 12.0, mul(h, h))
-        half_h = mul(0.5, h)
         xi1, xi2 = vadd(rest1, combine(P1, qv)), vadd(rest2, combine(P2, qv))
-        xd1, xd2 = combine(P1, qdv), combine(P2, qdv)
-        O = vadd(vscale(half_h, vadd(xi1, xi2)), vscale(c, lie.ad(xi1, xi2)))
-        Od = vadd(vscale(half_h, vadd(xd1, xd2)), vscale(c, vadd(lie.ad(xi1, xd2), lie.ad(xd1, xi2))))
-        Z = vadd(vscale(half_h, vadd(P1, P2)), vscale(c, lie.vsub(lie.ad(xi1, P2), lie.ad(xi2, P1))))
-        Zd_qd = vscale(mul(2.0, c), lie.ad(xd1, xd2))
-        (S, S_qd, T_Zd_qd), T_rate = lie.dexp_and_rate(O, Od, [Z, Od, Zd_qd], rate_of=Od if with_psi else None)
-        R_s, p_s = lie.exp_se3(O)
+        R_s, p_s, (S,), S_qd, Sdot_qd = magnus(xi1, xi2, combine(P1, qdv), combine(P2, qdv), [P1], [P2],
+                                              mul(x["h"], L), with_psi)
         J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
         if with_psi:
-            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, vadd(T_rate, T_Zd_qd)), lie.ad(eta, S_qd)))
+            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
         eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
         J = lie.ad_inv_apply(R_s, p_s, J)
         R, p = lie.compose(R, p, R_s, p_s)

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import inputs, integrators
+from gvsjax import contact, inputs, integrators
 from gvsjax.kinematics import tip_state
 from gvsjax.model import Robot
 from gvsjax.stability import stable_step_estimate
@@ -206,5 +206,7 @@ def _assemble(robot, system, t, qu, qdu, helds) -> Trajectory:
 
     tension, force, wrench = jax.vmap(applied)(t, qu, qdu, helds)
     tip, tip_vel = jax.vmap(lambda x, v: tip_state(robot, x, v))(q, qd)
+    touch, gap = jax.vmap(lambda s, x, v: contact.report(robot, x, v, s))(t, q, qd)
     return Trajectory(t=t, q=q, qd=qd, tip=tip, tip_velocity=tip_vel, joint_torque=torque,
-                      tendon_force=tension, joint_force=force, wrench=wrench)
+                      tendon_force=tension, joint_force=force, wrench=wrench, contact_force=touch,
+                      contact_gap=gap, in_contact=jnp.any(gap < 0, axis=-1))

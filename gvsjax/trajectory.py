@@ -15,6 +15,10 @@ class Trajectory:
     exert (by inverse dynamics), N m for revolute joints; tendon_force
     (m, n_tendons), joint_force (m, n_actuated) and wrench (m, n_wrenches, 6):
     the inputs applied (zeros where none is given). ``m = n_steps / save_every + 1``.
+    contact_force (m, n_c, 3): world force (N) the obstacles exert at each contact sample
+    (``gvsjax.contact.sites`` lists them; n_c = 0 without ``Robot.contact``); contact_gap
+    (m, n_c): each sample's smallest gap (m, negative when penetrating); in_contact (m,):
+    whether any sample penetrates.
     """
 
     t: jax.Array
@@ -26,3 +30,6 @@ class Trajectory:
     tendon_force: jax.Array
     joint_force: jax.Array
     wrench: jax.Array
+    contact_force: jax.Array
+    contact_gap: jax.Array
+    in_contact: jax.Array

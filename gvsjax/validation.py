@@ -143,6 +143,10 @@ def check_robot(robot) -> None:
                 td.direction, "a unit 2-vector in the section's (y, z) plane")
     for i in robot.prescribed:
         require(0 <= i < robot.n_dofs, "prescribed", robot.prescribed, f"DoF indices in [0, {robot.n_dofs})")
+    if getattr(robot, "contact", None) is not None:
+        from gvsjax.contact import check
+
+        check(robot)
 
 
 def _inside(link, X: Any = None) -> Any:

@@ -1,0 +1,346 @@
+"""Contact between the robot and obstacles: a smooth penalty with regularised Coulomb friction.
+
+The rod is a tube: every point within the section's radius (circumscribed
+circle for ellipses and rectangles; ``taper`` scales it) of the centreline.
+Each soft link carries ``n_points`` contact samples, uniform in X (ends
+included, spacing h = L / (n_points - 1)). Sample k stands for the straight
+piece of tube along its local tangent, u in [-h/2, h/2] (half of that at the
+link's ends), so the pieces tile the rod without gaps: an obstacle of any
+width is found, wherever it lies between samples. The piece departs from the
+curved centreline by at most kappa h^2 / 8 (kappa: curvature, 1/m), the
+sampling's only geometric error. The penalty per unit length is integrated
+over each piece in closed form from the obstacle's overlap profile (parabolic
+for spheres and capsules, linear for planes and box faces), so the force on a
+straight rod does not depend on where an obstacle sits between samples.
+Rigid links touch at ``ContactSite`` balls fixed in their frame.
+
+Normal force, per metre of rod (per site for rigid links), at gap g (m):
+``k delta(g) + c chi(g) (-v_n)``, clipped at 0 (no adhesion), with the smooth
+penetration ``delta = l softplus(-g / l)`` and indicator ``chi = sigmoid(-g /
+l)`` (l: smoothing length). Friction: ``-mu f_n v_t / sqrt(|v_t|^2 + v_s^2)``
+on the slip velocity v_t of the rod's surface point against the obstacle's:
+Coulomb's law for |v_t| >> v_s, a viscous creep below. See docs/contact.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from gvsjax import lie
+from gvsjax.kinematics import ZANNA, Point, advance, forward, grid_of, magnus, rest_strain, strain, strain_rate
+from gvsjax.lie import zeros
+from gvsjax.model import RigidLink, Robot, SoftLink
+from gvsjax.obstacles import OBSTACLES, TINY, Box, Capsule, Plane, Sphere
+from gvsjax.validation import concrete, finite, integer, nonnegative, positive, require
+
+
+@struct.dataclass
+class Penalty:
+    """Contact law parameters. For soft links stiffness is N/m per metre of rod (N/m^2) and
+    damping N s/m per metre (N s/m^2); for rigid sites, N/m and N s/m.
+
+    smoothing: length l of the softplus (m); friction: Coulomb's mu; slip_speed: the
+    regularisation speed v_s (m/s) below which friction turns viscous (a creep)."""
+
+    stiffness: Any = 1e7
+    damping: Any = 5e3
+    smoothing: Any = 1e-5
+    friction: Any = 0.0
+    slip_speed: Any = 1e-2
+
+
+@struct.dataclass
+class ContactSite:
+    """A contact ball of ``radius`` (m) at ``offset`` (3,) (m, in the joint frame of rigid link
+    ``link``, as ``RigidLink.com``)."""
+
+    offset: Any = (0.0, 0.0, 0.0)
+    radius: Any = 0.0
+    link: int = struct.field(pytree_node=False, default=-1)
+
+
+@struct.dataclass
+class Contact:
+    """Obstacles and how the robot touches them (``Robot.contact``).
+
+    obstacles: a tuple of ``Plane``, ``Sphere``, ``Capsule``, ``Box``; rod: the penalty on
+    soft links (per metre); site: the penalty at rigid ``sites``; n_points: contact samples
+    per soft link (static), see ``points_for`` to choose it.
+    """
+
+    obstacles: tuple = ()
+    rod: Penalty = Penalty()
+    site: Penalty = Penalty(stiffness=1e5, damping=200.0, smoothing=1e-4)
+    sites: tuple = ()
+    n_points: int = struct.field(pytree_node=False, default=21)
+
+    def material_points(self, link: SoftLink) -> tuple[float, ...]:
+        """The contact samples' X on a soft link."""
+        return tuple(float(x) for x in np.linspace(0.0, 1.0, self.n_points))
+
+
+def points_for(length: float, curvature: float, error: float = 1e-3) -> int:
+    """Contact samples per link so that the straight pieces stay within ``error`` (m) of a
+    centreline of curvature up to ``curvature`` (1/m): kappa h^2 / 8 <= error."""
+    h = np.sqrt(8.0 * error / max(curvature, 1e-12))
+    return int(max(2, np.ceil(length / h) + 1))
+
+
+# ----------------------------------------------------------------------------
+# the law at one sample (broadcasts over leading axes)
+
+
+def _smooth_depth(gap, l):
+    return l * jax.nn.softplus(-gap / l)
+
+
+def _flat_area(gap, slope, u, lo, hi, l):
+    """For a gap linear along the piece (gap at u, d gap/du = slope): the integral over [lo, hi]
+    of the depth, smoothed at the deepest end and falling linearly from there while
+    positive; the length where it is positive, and its middle (where the force acts)."""
+    deep = jnp.where(slope > 0, lo, hi)
+    s = jnp.maximum(jnp.abs(slope), 1e-12)
+    peak = _smooth_depth(gap + slope * (deep - u), l)
+    length = jnp.minimum(peak / s, hi - lo)
+    middle = jnp.where(slope > 0, lo + length / 2, hi - length / 2)
+    return length * (peak - s * length / 2), length, middle
+
+
+def _curved_area(gap, curv, u, centre, lo, hi, l):
+    """For a gap growing like curv (w - centre)^2 / 2 about its minimum at ``centre`` (gap at u):
+    the integral over [lo, hi] of the depth (its peak smoothed), the length where it is
+    positive, and u (where the force acts)."""
+    peak = _smooth_depth(gap - 0.5 * curv * (u - centre) ** 2, l)
+    half = jnp.sqrt(2.0 * peak / curv + TINY * TINY)
+    a = jnp.clip(centre - half, lo, hi)
+    b = jnp.clip(centre + half, lo, hi)
+    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a, u
+
+
+def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
+    """The contact wrench on one rod piece or site from every obstacle.
+
+    p (..., 3) world centre, R (..., 3, 3) world rotation (column 0: the tangent), eta
+    (..., 6) body twist (angular, linear); radius (...) m; lo, hi: the piece's extent along
+    the tangent (m; None for a site: a ball, forces per site). Returns (body wrench (..., 6):
+    moment N m, force N, in the section's frame; world force (..., 3) N; the smallest gap
+    over the obstacles (...), m, negative when penetrating).
+    """
+    tangent = R[..., :, 0]
+    omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
+    l = pen.smoothing
+    point = lo is None
+    lo_, hi_ = (0.0, 0.0) if point else (lo, hi)
+    force = jnp.zeros_like(p)
+    moment = jnp.zeros_like(p)
+    gap_min = jnp.full(p.shape[:-1], jnp.inf, p.dtype)
+    for obs in obstacles:
+        pc = obs.piece(p, tangent, lo_, hi_, t)
+        g = pc.gap - radius
+        if point:
+            area, length, u = _smooth_depth(g, l), 1.0, pc.u
+        elif isinstance(obs, (Plane, Box)):
+            area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
+            g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
+        else:
+            area, length, u = _curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
+        chi = jax.nn.sigmoid(-g / l)
+        arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
+        v_rel = vel + jnp.cross(omega, arm) - pc.velocity
+        v_n = jnp.sum(v_rel * pc.normal, axis=-1)
+        f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
+        v_t = v_rel - v_n[..., None] * pc.normal
+        slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
+        f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
+        force = force + f
+        moment = moment + jnp.cross(arm, f)
+        gap_min = jnp.minimum(gap_min, g)
+    body = jnp.concatenate([jnp.einsum("...ji,...j->...i", R, moment),
+                            jnp.einsum("...ji,...j->...i", R, force)], axis=-1)
+    return body, force, gap_min
+
+
+# ----------------------------------------------------------------------------
+# the robot's contact samples
+
+
+def _stack(xs: list, n_c: int):
+    """One scalar per sample as a (n_c,) scalar; a structural zero when every one is."""
+    if all(lie.is_zero(x) for x in xs):
+        return 0
+    return jnp.stack([jnp.broadcast_to(lie.as_array(x), ()) for x in xs])
+
+
+def _columns(raw: np.ndarray, inv_length, dtype) -> list[tuple]:
+    """``kinematics.scaled_columns`` for per-sample raw bases (n_c, 6, n): (n_c,) scalars."""
+    return [tuple(0 if not np.any(raw[:, r, k]) else
+                  (jnp.asarray(raw[:, r, k], dtype) * inv_length if r < 3 else jnp.asarray(raw[:, r, k], dtype))
+                  for r in range(6)) for k in range(raw.shape[2])]
+
+
+def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, qd):
+    """Pose, twist and Jacobian at every contact sample of soft link ``li``, each sample one
+    Magnus step (as ``kinematics._soft_link``'s) from the grid point before it, all samples at
+    once: the scalars are (n_c,) arrays. Returns (R, p, J, eta) in scalar algebra."""
+    grid = grid_of(robot, li)
+    Xc = np.asarray(robot.contact.material_points(link))
+    n_c = len(Xc)
+    base = np.clip(np.searchsorted(grid.X, Xc, side="right") - 1, 0, len(grid.X) - 1)
+    dX = Xc - grid.X[base]
+    grid_pts = [pt for pt in points if pt.link == li and pt.kind == "soft"]
+    pick = [grid_pts[i] for i in base]
+    R = tuple(tuple(_stack([pt.R[a][b] for pt in pick], n_c) for b in range(3)) for a in range(3))
+    p = tuple(_stack([pt.p[a] for pt in pick], n_c) for a in range(3))
+    eta = tuple(_stack([pt.eta[a] for pt in pick], n_c) for a in range(6))
+    J = [tuple(_stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
+    j0, s0, end = robot.dof_slices()[li]
+    qs, qds = q[s0:end], qd[s0:end]
+    dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *qds, *p)))  # float32 runs stay float32
+    L = link.length
+    x1, x2 = grid.X[base] + ZANNA[0] * dX, grid.X[base] + ZANNA[1] * dX
+    P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L, dtype)
+    P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L, dtype)
+    xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
+    R_s, p_s, S_cols, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), P1, P2,
+                                       jnp.asarray(dX, dtype) * L, with_psi=False)
+    R, p, J, eta, _ = advance((R, p, J, eta, zeros(6)), R_s, p_s, S_cols, list(range(s0, end)), S_qd, None, False)
+    return R, p, J, eta
+
+
+def _arrays(R, p, eta, n_c: int):
+    full = lambda x: jnp.broadcast_to(lie.as_array(x), (n_c,))  # noqa: E731
+    return (jnp.stack([jnp.stack([full(a) for a in row], -1) for row in R], -2),
+            jnp.stack([full(a) for a in p], -1), jnp.stack([full(a) for a in eta], -1))
+
+
+def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, list]:
+    """The contact at every sample: (generalized force, n scalars; world forces, one (n_c, 3)
+    per soft link and one (3,) per site, N; gaps likewise, m). q, qd: n scalars each."""
+    contact = robot.contact
+    F: list = [0] * robot.n_dofs
+    forces, gaps = [], []
+    for li, link in enumerate(robot.links):
+        if not isinstance(link, SoftLink):
+            continue
+        Xc = np.asarray(contact.material_points(link))
+        n_c = len(Xc)
+        Rs, ps, J, etas = _soft_samples(robot, li, link, points, q, qd)
+        R, p, eta = _arrays(Rs, ps, etas, n_c)
+        half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
+        lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
+        hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
+        w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
+        w6 = tuple(w[:, k] for k in range(6))
+        for j, col in enumerate(J):
+            F[j] = lie.add(F[j], _sum(lie.dot(col, w6)))
+        forces.append(f)
+        gaps.append(g)
+    n = len(robot.links)
+    for site in contact.sites:
+        link = robot.links[site.link % n]
+        pt = next(x for x in points if x.link == site.link % n and x.kind == "rigid")
+        R, p, eta = (a[0] for a in _arrays(pt.R, pt.p, pt.eta, 1))
+        d = jnp.asarray(site.offset, p.dtype) - jnp.asarray(link.com, p.dtype)  # from the CoM, body frame
+        eta_s = jnp.concatenate([eta[:3], eta[3:] + jnp.cross(eta[:3], d)])
+        w, f, g = law(p + R @ d, R, eta_s, jnp.asarray(site.radius, p.dtype), None, None, contact.obstacles,
+                      contact.site, t)
+        w = jnp.concatenate([w[:3] + jnp.cross(d, w[3:]), w[3:]])  # moved to the CoM
+        for j, col in enumerate(pt.J):
+            F[j] = lie.add(F[j], lie.dot(col, tuple(w[k] for k in range(6))))
+        forces.append(f[None])
+        gaps.append(g[None])
+    return F, forces, gaps
+
+
+def _sum(x):
+    return 0 if lie.is_zero(x) else jnp.sum(x)
+
+
+def _radius(link: SoftLink, X, dtype):
+    half = link.radius if link.shape == "circle" else 0.5 * jnp.hypot(link.width, link.height)
+    return half * (1.0 + (link.taper - 1.0) * jnp.asarray(X, dtype))
+
+
+def report(robot: Robot, q, qd, t) -> tuple[jax.Array, jax.Array]:
+    """World contact force on the robot at every contact sample (n_c, 3), N (a soft sample's is
+    the total over its piece of rod), and each sample's smallest gap (n_c,), m (negative:
+    penetrating); rows as ``sites``. q, qd: (n,) arrays."""
+    if robot.contact is None:
+        return jnp.zeros((0, 3), q.dtype), jnp.zeros((0,), q.dtype)
+    n = robot.n_dofs
+    qs, qds = [q[i] for i in range(n)], [qd[i] for i in range(n)]
+    _, forces, gaps = evaluate(robot, forward(robot, qs, qds, with_psi=False), qs, qds, t)
+    return jnp.concatenate(forces), jnp.concatenate(gaps)
+
+
+def sites(robot: Robot) -> list[tuple[int, Any]]:
+    """(link, X or site index) of every row of the contact report, in order."""
+    if robot.contact is None:
+        return []
+    rows: list[tuple[int, Any]] = []
+    for li, link in enumerate(robot.links):
+        if isinstance(link, SoftLink):
+            rows += [(li, X) for X in robot.contact.material_points(link)]
+    rows += [(s.link % len(robot.links), f"site {k}") for k, s in enumerate(robot.contact.sites)]
+    return rows
+
+
+def check(robot: Robot) -> None:
+    """Validate ``robot.contact`` (concrete leaves only), naming the bad parameter."""
+    c = robot.contact
+    if c is None:
+        return
+    require(isinstance(c, Contact), "contact", type(c).__name__, "None or a gvsjax.Contact")
+    integer("contact.n_points", c.n_points, low=2)
+    for name, pen in (("contact.rod", c.rod), ("contact.site", c.site)):
+        require(isinstance(pen, Penalty), name, type(pen).__name__, "a Penalty")
+        positive(f"{name}.stiffness", pen.stiffness)
+        nonnegative(f"{name}.damping", pen.damping)
+        positive(f"{name}.smoothing", pen.smoothing)
+        nonnegative(f"{name}.friction", pen.friction)
+        positive(f"{name}.slip_speed", pen.slip_speed)
+    require(isinstance(c.obstacles, tuple), "contact.obstacles", c.obstacles, "a tuple of obstacles")
+    for k, obs in enumerate(c.obstacles):
+        name = f"contact.obstacles[{k}]"
+        require(isinstance(obs, OBSTACLES), name, type(obs).__name__, "a Plane, Sphere, Capsule or Box")
+        require(obs.motion is None or callable(obs.motion), f"{name}.motion", obs.motion, "None or a law t -> (3,)")
+        if isinstance(obs, Plane):
+            finite(f"{name}.point", obs.point, (3,))
+            finite(f"{name}.normal", obs.normal, (3,))
+            if concrete(obs.normal):
+                require(float(np.linalg.norm(np.asarray(obs.normal, float))) > 1e-9, f"{name}.normal",
+                        obs.normal, "a nonzero 3-vector")
+        elif isinstance(obs, Sphere):
+            finite(f"{name}.centre", obs.centre, (3,))
+            positive(f"{name}.radius", obs.radius, ())
+        elif isinstance(obs, Capsule):
+            finite(f"{name}.start", obs.start, (3,))
+            finite(f"{name}.end", obs.end, (3,))
+            positive(f"{name}.radius", obs.radius, ())
+            if concrete((obs.start, obs.end)):
+                require(float(np.linalg.norm(np.subtract(obs.end, obs.start, dtype=float))) > 1e-9,
+                        f"{name}.end", obs.end, "a point apart from start (else use a Sphere)")
+        else:
+            finite(f"{name}.centre", obs.centre, (3,))
+            positive(f"{name}.half_extents", obs.half_extents, (3,))
+            finite(f"{name}.rotation", obs.rotation, (3, 3))
+            if concrete(obs.rotation):
+                rot = np.asarray(obs.rotation, float)
+                require(bool(np.allclose(rot.T @ rot, np.eye(3), atol=1e-9)) and np.linalg.det(rot) > 0,
+                        f"{name}.rotation", obs.rotation, "a rotation matrix (orthonormal, det +1)")
+    n = len(robot.links)
+    for k, site in enumerate(c.sites):
+        name = f"contact.sites[{k}]"
+        require(isinstance(site, ContactSite), name, type(site).__name__, "a ContactSite")
+        require(-n <= site.link < n and isinstance(robot.links[site.link], RigidLink), f"{name}.link", site.link,
+                "the index of a rigid link")
+        finite(f"{name}.offset", site.offset, (3,))
+        nonnegative(f"{name}.radius", site.radius, ())
+
+
+__all__ = ["Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box", "law", "points_for", "sites"]

@@ -1,0 +1,224 @@
+"""Contact with obstacles: a body resting on a plane, a block on an incline (sliding and
+sticking), a soft cantilever propped on a frictionless plane, a thin bar between two
+contact samples, moving obstacles, and jit / vmap / grad over obstacle layouts. Every
+reference is a closed form computed here with numpy or scipy, not with gvsjax."""
+
+import gvsjax as gv  # noqa: I001  (first: it configures JAX)
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from gvsjax import contact
+from helpers import raises_naming
+
+G = 9.81
+
+
+def smooth_gap(load, k, l):
+    """The gap at which the smoothed penalty k l softplus(-g / l) carries ``load``."""
+    return brentq(lambda g: k * l * np.logaddexp(0.0, -g / l) - load, -1.0, 1.0, xtol=1e-15)
+
+
+# ----------------------------------------------------------------------------
+# a rigid body on planes
+
+
+MASS, BALL = 2.0, 0.05
+
+
+def ball(plane=None, **penalty) -> gv.Robot:
+    """A body on a vertical prismatic joint (q = height of its centre) with a contact ball."""
+    body = gv.RigidLink(mass=MASS, inertia=(1e-3,) * 3, joint=gv.Joint("prismatic", (0.0, 1.0, 0.0)))
+    c = gv.Contact(obstacles=(plane or gv.Plane(),), sites=(gv.ContactSite(radius=BALL, link=0),),
+                   site=gv.Penalty(**{"stiffness": 1e5, "damping": 200.0, "smoothing": 1e-4, **penalty}))
+    return gv.Robot(links=(body,), contact=c)
+
+
+def test_body_resting_on_a_plane_carries_its_weight_at_the_penetration_of_the_penalty_law():
+    k, l = 1e5, 1e-4
+    tr = gv.simulate(ball(), 1.0, 1e-3, q0=jnp.array([0.08]))
+    assert not bool(tr.in_contact[0]) and bool(tr.in_contact[-1])
+    np.testing.assert_allclose(np.asarray(tr.contact_force[-1, 0]), [0.0, MASS * G, 0.0], atol=1e-9)
+    gap = smooth_gap(MASS * G, k, l)
+    np.testing.assert_allclose(float(tr.q[-1, 0]), BALL + gap, atol=1e-10)
+    np.testing.assert_allclose(float(tr.contact_gap[-1, 0]), gap, atol=1e-10)
+    assert -gap < 2e-4  # mg / k = 0.2 mm
+
+
+def test_a_rising_plane_lifts_the_body_at_its_speed():
+    speed = 0.3
+    plane = gv.Plane(motion=lambda t: jnp.stack([0.0 * t, speed * t, 0.0 * t]))
+    tr = gv.simulate(ball(plane), 1.0, 1e-3, q0=jnp.array([BALL]))
+    np.testing.assert_allclose(float(tr.qd[-1, 0]), speed, rtol=1e-6)
+    np.testing.assert_allclose(float(tr.q[-1, 0]), BALL + speed + smooth_gap(MASS * G, 1e5, 1e-4), atol=1e-6)
+
+
+def test_body_rests_on_a_box_and_on_a_sphere_at_their_surfaces():
+    box = gv.Box(centre=(0.0, -0.2, 0.0), half_extents=(0.3, 0.2, 0.3),
+                 rotation=gv.axis_rotation((0.0, 1.0, 0.0), 0.4))
+    sphere = gv.Sphere(centre=(0.0, -0.5, 0.0), radius=0.5)
+    gap = smooth_gap(MASS * G, 1e5, 1e-4)
+    for obstacle in (box, sphere):
+        tr = gv.simulate(ball(obstacle), 1.0, 1e-3, q0=jnp.array([0.1]))
+        np.testing.assert_allclose(float(tr.q[-1, 0]), BALL + gap, atol=1e-10)
+
+
+# ----------------------------------------------------------------------------
+# a block on an incline: two contact corners, planar joint
+
+HALF, THICK = 0.05, 0.02
+
+
+def incline(angle, mu, slip_speed=1e-2):
+    body = gv.RigidLink(mass=1.0, inertia=(1e-4, 1e-4, (HALF**2 + THICK**2) / 3), joint=gv.Joint("planar"))
+    corners = tuple(gv.ContactSite(offset=(x, -THICK, 0.0), link=0) for x in (-HALF, HALF))
+    plane = gv.Plane(normal=(-np.sin(angle), np.cos(angle), 0.0))
+    c = gv.Contact(obstacles=(plane,), sites=corners,
+                   site=gv.Penalty(stiffness=1e5, damping=200.0, friction=mu, slip_speed=slip_speed))
+    robot = gv.Robot(links=(body,), contact=c)
+    normal, down = np.array([-np.sin(angle), np.cos(angle)]), -np.array([np.cos(angle), np.sin(angle)])
+    q0 = jnp.array([*(THICK * normal), angle])
+    return gv.simulate(robot, 1.0, 5e-4, q0=q0), down
+
+
+def test_block_slides_down_an_incline_at_g_sin_minus_mu_cos():
+    angle, mu = np.deg2rad(30.0), 0.3
+    tr, down = incline(angle, mu)
+    t, v = np.asarray(tr.t), np.asarray(tr.qd[:, :2]) @ down
+    i, j = np.searchsorted(t, 0.5), len(t) - 1
+    a = (v[j] - v[i]) / (t[j] - t[i])
+    np.testing.assert_allclose(a, G * (np.sin(angle) - mu * np.cos(angle)), rtol=1e-2)
+    normal = np.array([-np.sin(angle), np.cos(angle), 0.0])
+    np.testing.assert_allclose(float(jnp.sum(tr.contact_force[-1] @ normal)), G * np.cos(angle), rtol=1e-6)
+
+
+def test_block_sticks_on_an_incline_below_the_friction_angle_up_to_the_regularised_creep():
+    """tan(angle) < mu: Coulomb holds the block. The regularised law lets it creep at the speed
+    where mu N v / sqrt(v^2 + v_s^2) = m g sin(angle), v = v_s tan / sqrt(mu^2 - tan^2)."""
+    angle, mu, v_s = np.deg2rad(20.0), 0.6, 1e-2
+    tr, down = incline(angle, mu, v_s)
+    v = np.asarray(tr.qd[:, :2]) @ down
+    tan = np.tan(angle)
+    creep = v_s * tan / np.sqrt(mu**2 - tan**2)
+    np.testing.assert_allclose(v[-1], creep, rtol=1e-2)
+    assert np.max(np.abs(v)) < 2 * creep  # never slides: sliding would reach g (sin - mu cos) t
+
+
+# ----------------------------------------------------------------------------
+# a soft cantilever propped on a frictionless plane
+
+E, R0, RHO = 1e9, 0.02, 1000.0
+EI, W = E * np.pi * R0**4 / 4, RHO * np.pi * R0**2 * G
+
+
+def propped(plane_y, stiffness=1e7) -> gv.Robot:
+    """A horizontal cantilever (clamped at the origin along +x, weight W per metre) over a
+    plane at height plane_y. Quadratic curvature: the propped cantilever's exact shape."""
+    link = gv.SoftLink(length=1.0, radius=R0, material=gv.Material(E, RHO, 0.0, 0.5), joint=gv.Joint("fixed"),
+                       basis=gv.StrainBasis(orders=(-1, -1, 2, -1, -1, -1), kind="legendre"), n_gauss=4)
+    c = gv.Contact(obstacles=(gv.Plane(point=(0.0, plane_y, 0.0)),), rod=gv.Penalty(stiffness=stiffness),
+                   n_points=11)
+    return gv.Robot(links=(link,), gravity=G, contact=c)
+
+
+def reaction(plane_y):
+    robot = propped(plane_y)
+    q = gv.equilibrium(robot).q
+    force, _ = contact.report(robot, q, jnp.zeros_like(q), 0.0)
+    return jnp.sum(force[:, 1])
+
+
+def test_propped_cantilever_on_a_frictionless_plane_carries_the_beam_theory_reaction():
+    """Free sag W L^4 / 8 EI, held at the plane (tip deflection d): R = 3 EI / L^3 (sag - d);
+    and dR / d(plane height) = 3 EI / L^3."""
+    sag = W / (8 * EI)
+    d = 0.5 * sag
+    plane_y = -d - R0  # the rod's underside touches at tip deflection d
+    value, slope = jax.value_and_grad(reaction)(plane_y)
+    np.testing.assert_allclose(float(value), 3 * EI * (sag - d), rtol=2e-2)
+    np.testing.assert_allclose(float(slope), 3 * EI, rtol=3e-2)
+
+
+# ----------------------------------------------------------------------------
+# a thin bar between two contact samples
+
+
+def test_a_bar_thinner_than_the_sample_spacing_pushes_the_rod_wherever_it_lies():
+    """The paper's arm hanging straight (21 samples, 5 cm apart) against a 1 cm bar across it,
+    1 mm deep: every sample's own ball misses the bar, yet the force is the penalty integral
+    k int (a + r - sqrt(rho^2 + u^2))_+ du, the same wherever the bar lies between samples."""
+    k, a, depth = 1e6, 0.005, 1e-3
+    arm = gv.paper_arm()
+    r = gv.PAPER_ARM["radius"]
+    rho = a + r - depth
+    u = np.linspace(-0.02, 0.02, 400001)
+    exact = k * np.trapezoid(np.clip(a + r - np.sqrt(rho**2 + u**2), 0.0, None), u)
+    q = jnp.zeros(arm.n_dofs)
+
+    @jax.jit
+    def push(y):
+        bar = gv.Capsule(start=(rho, y, -0.2), end=(rho, y, 0.2), radius=a)
+        robot = arm.replace(contact=gv.Contact(obstacles=(bar,), rod=gv.Penalty(stiffness=k)))
+        force, gap = contact.report(robot, q, q, 0.0)
+        return jnp.sum(force, axis=0), gap
+
+    for y in (-0.4, -0.4125, -0.425, -0.44):  # on a sample, a quarter and a half spacing off, ...
+        force, gap = push(y)
+        np.testing.assert_allclose(float(force[0]), -exact, rtol=1e-2)
+        centre_gap = np.hypot(rho, np.asarray(y) + np.linspace(0.0, 1.0, 21)) - a - r
+        if y in (-0.4125, -0.425):
+            assert np.all(centre_gap > 0)  # a ball at each sample would not touch it
+
+
+# ----------------------------------------------------------------------------
+# jit, vmap over obstacle layouts, grad with respect to obstacle positions
+
+
+def test_vmap_over_plane_heights_and_grad_of_the_rest_height_with_respect_to_the_plane():
+    def rest(height):
+        tr = gv.simulate(ball(gv.Plane(point=jnp.stack([0.0, height, 0.0]))), 0.5, n_steps=500,
+                         q0=jnp.array([0.07]) + height, check_stability=False)
+        return tr.q[-1, 0]
+
+    heights = jnp.array([0.0, 0.01, -0.02])
+    batched = jax.jit(jax.vmap(rest))(heights)
+    gap = smooth_gap(MASS * G, 1e5, 1e-4)
+    np.testing.assert_allclose(np.asarray(batched), np.asarray(heights) + BALL + gap, atol=1e-8)
+    slope = jax.jit(jax.grad(rest))(0.01)
+    assert np.isfinite(float(slope))
+    np.testing.assert_allclose(float(slope), 1.0, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------
+# bad input
+
+
+@pytest.mark.parametrize("make, name", [
+    (lambda: gv.Contact(rod=gv.Penalty(stiffness=-1.0)), "contact.rod.stiffness"),
+    (lambda: gv.Contact(site=gv.Penalty(smoothing=0.0)), "contact.site.smoothing"),
+    (lambda: gv.Contact(rod=gv.Penalty(friction=-0.1)), "contact.rod.friction"),
+    (lambda: gv.Contact(n_points=1), "contact.n_points"),
+    (lambda: gv.Contact(obstacles=(gv.Sphere(radius=0.0),)), "contact.obstacles[0].radius"),
+    (lambda: gv.Contact(obstacles=(gv.Plane(normal=(0.0, 0.0, 0.0)),)), "contact.obstacles[0].normal"),
+    (lambda: gv.Contact(obstacles=(gv.Capsule(start=(0.0, 0.0, 0.0), end=(0.0, 0.0, 0.0)),)), "obstacles[0].end"),
+    (lambda: gv.Contact(obstacles=(gv.Box(rotation=((1.0, 0.0, 0.0),) * 3),)), "obstacles[0].rotation"),
+    (lambda: gv.Contact(obstacles=(gv.Box(half_extents=(0.1, 0.1)),)), "obstacles[0].half_extents"),
+    (lambda: gv.Contact(obstacles=((0.0, 1.0, 0.0),)), "contact.obstacles[0]"),
+    (lambda: gv.Contact(sites=(gv.ContactSite(link=0),)), "contact.sites[0].link"),
+])
+def test_bad_contact_input_names_the_parameter_before_compiling(make, name):
+    robot = gv.paper_arm().replace(contact=make())
+    raises_naming(name, gv.simulate, robot, 0.1, 1e-3)
+
+
+def test_float32_run_with_contact_stays_float32_and_matches_float64():
+    link = gv.SoftLink(length=1.0, radius=0.02, material=gv.Material(1e9, 1000.0, 0.0, 0.5), joint=gv.Joint("fixed"),
+                       basis=gv.StrainBasis(orders=(-1, -1, 1, -1, -1, -1)), n_gauss=2)
+    robot = gv.Robot(links=(link,), gravity=G, contact=gv.Contact(obstacles=(gv.Plane(point=(0.0, -0.03, 0.0)),),
+                                                                  n_points=5))
+    runs = [gv.simulate(robot, 0.05, n_steps=1000, dtype=d, check_stability=False) for d in (jnp.float32, jnp.float64)]
+    assert runs[0].contact_gap.dtype == jnp.float32 and runs[0].q.dtype == jnp.float32
+    assert float(runs[1].contact_gap[-1, -1]) < 0  # the tip has reached the plane
+    np.testing.assert_allclose(np.asarray(runs[0].contact_gap), np.asarray(runs[1].contact_gap), atol=2e-6)
