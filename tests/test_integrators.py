@@ -95,8 +95,9 @@ def test_ars443_beyond_rk4_stability():
     assert not np.linalg.norm(tip("rk4", 40) - ref) < 1.0  # RK4 at the same step: diverged (nan) or far off
 
 
-@pytest.mark.parametrize("robot", [gv.paper_arm(tip_force=5.886), gv.rod_3d(order=0, n_gauss=2, gravity=9.81)],
-                         ids=["paper_arm_prescribed_base", "spatial_rod"])
+@pytest.mark.parametrize("robot", [gv.paper_arm(tip_force=5.886),
+                                   gv.rod_3d(order=(0, 0, 0, -1, -1, -1), n_gauss=2, gravity=9.81)],
+                         ids=["paper_arm_prescribed_base", "twisting_bending_rod"])
 def test_ars443_folded_and_split_layouts_are_one_scheme(robot):
     """``ars443`` picks a loop layout by the number of free DoFs; both layouts must be the
     same arithmetic: one step from a moving state agrees to rounding."""
