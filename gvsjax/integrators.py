@@ -32,6 +32,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from gvsjax import lie
 
@@ -151,9 +152,11 @@ def _imex_euler(system, t, q, qd, dt):
 # IMEX Runge-Kutta pair, L-stable SDIRK part with a_ii = 1/2, stiffly accurate
 # (the step's result is its last stage). Row i holds stage i's coefficients.
 # Only the off-diagonal implicit entries are stored: the diagonal 1/2 is the solve.
-_ARS443_E = jnp.array([[0.5, 0, 0, 0], [11 / 18, 1 / 18, 0, 0], [5 / 6, -5 / 6, 0.5, 0], [0.25, 1.75, 0.75, -1.75]])
-_ARS443_I = jnp.array([[0.0, 0, 0, 0], [0.0, 1 / 6, 0, 0], [0.0, -0.5, 0.5, 0], [0.0, 1.5, -1.5, 0.5]])
-_ARS443_C = jnp.array([0.5, 2 / 3, 0.5, 1.0])
+# NumPy tables: a JAX array at import would start JAX's backend, after which
+# jax.distributed.initialize can no longer run.
+_ARS443_E = np.array([[0.5, 0, 0, 0], [11 / 18, 1 / 18, 0, 0], [5 / 6, -5 / 6, 0.5, 0], [0.25, 1.75, 0.75, -1.75]])
+_ARS443_I = np.array([[0.0, 0, 0, 0], [0.0, 1 / 6, 0, 0], [0.0, -0.5, 0.5, 0], [0.0, 1.5, -1.5, 0.5]])
+_ARS443_C = np.array([0.5, 2 / 3, 0.5, 1.0])
 FOLD_MIN_DOFS = 4  # measured: 3D robots (6+ DoFs) gain, the paper's arm (2) loses (docs/speed.md)
 
 
@@ -182,7 +185,7 @@ def _ars443_folded(system, t, q, qd, dt):
     n = len(q)
     a = 0.5 * dt
     dtype = jnp.result_type(*q)
-    tab_e, tab_i, tab_c = (x.astype(dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
+    tab_e, tab_i, tab_c = (jnp.asarray(x, dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
     t_eval = t + jnp.concatenate([jnp.zeros(1, dtype), tab_c[:3]]) * dt  # where iteration i evaluates
     arr = lambda xs: jnp.stack([lie.as_array(x) for x in xs])  # noqa: E731
     q0, qd0 = jnp.stack(q), jnp.stack(qd)
@@ -228,7 +231,7 @@ def _ars443_split(system, t, q, qd, dt):
     n = len(q)
     a = 0.5 * dt
     dtype = jnp.result_type(*q)
-    tab_e, tab_i, tab_c = (x.astype(dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
+    tab_e, tab_i, tab_c = (jnp.asarray(x, dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
     A = [[lie.add(lie.add(M[i][j], lie.mul(a, D[i][j])), lie.mul(a * a, K[i][j])) for j in range(n)]
          for i in range(n)]
     arr = lambda xs: jnp.stack([lie.as_array(x) for x in xs])  # noqa: E731

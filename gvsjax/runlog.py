@@ -10,6 +10,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from gvsjax import distributed
+
 
 class MetricsLog:
     """metrics.csv (append, columns fixed by the first row) and optional TensorBoard."""
@@ -78,7 +80,7 @@ def _tensorboard(out: Path):
 
 
 def rows_of(metrics: dict, wall: float) -> list[dict[str, float]]:
-    m = {k: np.asarray(v) for k, v in jax.device_get(metrics).items()}
+    m = {k: np.asarray(v) for k, v in distributed.fetch(metrics).items()}
     rows = []
     for i in range(len(m["update"])):
         if int(m["update"][i]) < 0:  # skipped past the budget
@@ -103,7 +105,7 @@ def non_finite(rows: list[dict[str, float]], state) -> str | None:
             if not math.isfinite(v):
                 return f"metric {k}={v} at update {int(r['update'])}"
     for name in ("params", "opt_state"):
-        leaves = jax.tree_util.tree_leaves_with_path(getattr(state, name))
+        leaves = jax.tree_util.tree_leaves_with_path(distributed.fetch(getattr(state, name)))
         for where, x in leaves:
             x = np.asarray(x)
             if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):

@@ -20,19 +20,23 @@ simulation:
 
 The mesh uses as many devices as divide the batch (``num_envs`` = 6 on 4
 devices: 2 devices); ``batched`` pads the batch to a multiple of the device
-count instead, so it always uses every device. Multi-host: call
-``jax.distributed.initialize()`` first on every host; ``jax.devices()`` then
-lists all hosts' devices and the same code spans them. Set
-``GVSJAX_SHARDING=0`` to switch sharding off (e.g. to compare with a
-single-device run).
+count instead, so it always uses every device. Several processes
+(``gvsjax.distributed``): ``jax.devices()`` lists all processes' devices and
+the mesh spans them; the batch must then be a multiple of the device count
+(a process left out of the mesh could not take part). ``put`` places a
+process-local value (e.g. from ``init`` run under ``unsharded()``, or a
+checkpoint) on the mesh. Set ``GVSJAX_SHARDING=0`` to switch sharding off
+(e.g. to compare with a single-device run).
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import jax
@@ -43,16 +47,38 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 AXIS = "batch"  # the mesh axis name the batch is split over
 
 
+_OFF = contextvars.ContextVar("gvsjax_unsharded", default=False)
+
+
 def enabled() -> bool:
-    """Sharding is on unless ``GVSJAX_SHARDING=0`` (read at trace time)."""
-    return os.environ.get("GVSJAX_SHARDING", "1") != "0"
+    """Sharding is on unless ``GVSJAX_SHARDING=0`` or inside ``unsharded()`` (read at trace time)."""
+    return os.environ.get("GVSJAX_SHARDING", "1") != "0" and not _OFF.get()
+
+
+@contextlib.contextmanager
+def unsharded() -> Iterator[None]:
+    """Code traced or run inside uses this process's default device only (no mesh)."""
+    token = _OFF.set(True)
+    try:
+        yield
+    finally:
+        _OFF.reset(token)
 
 
 def mesh_for(batch_size: int) -> Mesh | None:
-    """A 1-D mesh over the most devices that divide ``batch_size`` (None if only one)."""
+    """A 1-D mesh over the most devices that divide ``batch_size`` (None if only one).
+
+    With several processes every device must take part: ``ValueError`` unless
+    ``batch_size`` is a multiple of ``jax.device_count()``.
+    """
+    if not enabled():
+        return None
     devices = jax.devices()
     k = math.gcd(len(devices), int(batch_size))
-    if k <= 1 or not enabled():
+    if jax.process_count() > 1 and k < len(devices):
+        raise ValueError(f"a batch of {batch_size} cannot be split over the {len(devices)} devices of "
+                         f"{jax.process_count()} processes; use a multiple of {len(devices)}")
+    if k <= 1:
         return None
     return Mesh(np.array(devices[:k]), (AXIS,))
 
@@ -67,6 +93,17 @@ def batch_spec(mesh: Mesh | None, axis: int = 0) -> NamedSharding | None:
 def replicated(mesh: Mesh | None) -> NamedSharding | None:
     """Sharding of an array copied to every device of the mesh."""
     return None if mesh is None else NamedSharding(mesh, PartitionSpec())
+
+
+def put(tree: Any, sharding: NamedSharding | None) -> Any:
+    """Place every array leaf, a whole process-local value, with ``sharding`` (None: as is).
+
+    With several processes each process passes the same whole value and keeps
+    its own devices' part of it.
+    """
+    if sharding is None:
+        return tree
+    return jax.tree.map(lambda x: jax.device_put(np.asarray(x), sharding), tree)
 
 
 def constrain(tree: Any, sharding: NamedSharding | None) -> Any:

@@ -15,6 +15,12 @@ command-line overrides then apply on top of the saved config (e.g. a larger
 ``total_episodes``); the keys that fix the saved state's shapes or meaning
 (``RESUME_FIXED``) cannot change.
 
+Several processes (hosts): start the same command once per process with
+``coordinator=HOST:PORT num_processes=N process_id=I`` (I = 0..N-1) and the
+same ``out``; the env batch is split over all processes' devices, process 0
+writes the run folder (the checkpoint gathered from all), and a resume reads
+the checkpoint on every process (docs/scale_out.md).
+
 Reliability: after every jitted call the losses, the other optimisation metrics
 and the network weights must be finite; otherwise training stops (exit code 3)
 with a message naming the metric and the update, after saving the last good
@@ -26,6 +32,7 @@ continues bit-identically to an uninterrupted one (same metrics.csv apart from
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import sys
@@ -37,7 +44,7 @@ import jax
 import numpy as np
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import keyvalue
+from gvsjax import distributed, keyvalue, sharding
 from gvsjax.ppo import (
     FIELD_DOCS,
     PRESETS,
@@ -48,6 +55,7 @@ from gvsjax.ppo import (
     init,
     make_update,
     num_updates,
+    place,
 )
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.ppo.config import field_parsers
@@ -69,6 +77,10 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "progress": (True, "show a tqdm progress bar"),
     "updates_per_call": (0, "PPO updates per jitted call (0: ~8k episodes per call); "
                             "checkpoints and the finiteness check happen between calls"),
+    "coordinator": ("", "HOST:PORT of process 0 in a run over several processes (hosts); empty: one process"),
+    "num_processes": (1, "processes of the run, each started with the same arguments but its own "
+                         "process_id; num_envs must be a multiple of their total device count"),
+    "process_id": (0, "this process's index in [0, num_processes); process 0 writes the run folder"),
 }
 # Config keys that fix the shapes or the meaning of a saved TrainState.
 RESUME_FIXED = ("seed", "num_envs", "network", "shared_hidden", "actor_hidden", "critic_hidden",
@@ -79,6 +91,8 @@ _RUN_RANGES: dict[str, tuple[Any, str]] = {
     "eval_seed": (lambda v: v >= -1, "an int >= -1"),
     "updates_per_call": (lambda v: v >= 0, "an int >= 0"),
     "sim_dtype": (lambda v: v in ("", "float64", "float32"), "float64, float32 or empty (float64)"),
+    "num_processes": (lambda v: v >= 1, "an int >= 1"),
+    "process_id": (lambda v: v >= 0, "an int >= 0 (and < num_processes)"),
 }
 
 
@@ -111,6 +125,9 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
         raise ValueError(f"preset={run['preset']!r} is unknown; choose one of {sorted(PRESETS)}")
     if run["resume"] and not run["out"]:
         raise ValueError("resume=true needs out=<run folder> (the folder holding checkpoint.ckpt)")
+    distributed.check_args(run["coordinator"], run["num_processes"], run["process_id"])
+    if run["num_processes"] > 1 and not run["out"]:
+        raise ValueError(f"num_processes={run['num_processes']} needs out=<run folder>, the same on every process")
     env = make(run["task"])
     if run["train_targets"] and run["train_targets"] not in env.train_variants:
         Environment.train_params(env, run["train_targets"])  # raises, naming the choices
@@ -165,7 +182,8 @@ def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConf
     task = run["task"]
     if meta["task"] != task:
         raise ValueError(f"resume: {ckpt_path} is a task={meta['task']!r} run; pass task={meta['task']}")
-    ckpt.remove_stale_temps(ckpt_path)  # left by a write the kill interrupted
+    if distributed.is_main():
+        ckpt.remove_stale_temps(ckpt_path)  # left by a write the kill interrupted
     saved = config_from_json(meta["config"], f"the config saved in {ckpt_path}")
     for key in RESUME_FIXED:
         if key in overrides and overrides[key] != getattr(saved, key):
@@ -183,8 +201,21 @@ def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConf
     return saved.replace(**overrides), {**run, "train_targets": saved_targets, "sim_dtype": saved_dtype}, meta
 
 
+def _process_envs(config: PPOConfig, state) -> str:
+    """Which envs this process steps, e.g. ``process 1 of 2: envs 8:16 of 16``."""
+    spans = sorted((s.index[0].start or 0, s.index[0].stop or config.num_envs)
+                   for s in state.last_obs.addressable_shards)
+    return (f"process {jax.process_index()} of {jax.process_count()}: envs "
+            + ", ".join(f"{a}:{b}" for a, b in spans) + f" of {config.num_envs}")
+
+
 def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
-    """Run (or resume) training; returns the run folder."""
+    """Run (or resume) training; returns the run folder.
+
+    With ``num_processes`` > 1 every process calls it (see the module's docstring).
+    """
+    distributed.initialize(run.get("coordinator", ""), run.get("num_processes", 1), run.get("process_id", 0))
+    writer = distributed.is_main()  # the one process that writes files and prints the summary
     task = run["task"]
     out = Path(run["out"] or f"runs/{task}-{time.strftime('%Y%m%d-%H%M%S')}")
     ckpt_path = out / ckpt.FILE_NAME
@@ -196,24 +227,32 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     else:
         config = build_config(task_defaults(task), run["preset"], overrides)
         run = {**run, "sim_dtype": run["sim_dtype"] or "float64"}
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.json").write_text(json.dumps(
-        {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
-         "sim_dtype": run["sim_dtype"], **dataclasses.asdict(config)}, indent=2))
+    if jax.process_count() > 1 and config.num_envs % jax.device_count():
+        raise ValueError(f"num_envs={config.num_envs} is invalid over {jax.process_count()} processes; "
+                         f"expected a multiple of their {jax.device_count()} devices")
+    if writer:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.json").write_text(json.dumps(
+            {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
+             "sim_dtype": run["sim_dtype"], **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
     env_params = training_params(env, run["train_targets"], run["sim_dtype"])
-    state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
-    if run["resume"]:
-        state = ckpt.restore_state(state, meta["train_state"])
+    with sharding.unsharded():  # the whole state on each process, then each keeps its part
+        state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
+        if run["resume"]:
+            state = ckpt.restore_state(state, meta["train_state"])
+    state = place(config, state)
+    if jax.process_count() > 1:
+        print(_process_envs(config, state), flush=True)
     total = num_updates(config, env.episode_length)
     per_call = run.get("updates_per_call") or default_updates_per_call(config, env.episode_length)
     step_fn = update_fn(task, config, env, env_params, per_call, run["train_targets"], run["sim_dtype"])
-    log = MetricsLog(out, int(state.update) if run["resume"] else None)
+    log = MetricsLog(out, int(state.update) if run["resume"] else None) if writer else None
     setup_s = time.perf_counter() - t0
 
     bar = None
-    if run["progress"]:
+    if run["progress"] and writer:
         from tqdm import tqdm
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
@@ -229,7 +268,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         if compile_s is None:
             compile_s = time.perf_counter() - t_call  # first call: compile + run
         rows = rows_of(metrics, time.perf_counter() - t0)
-        log.write(rows)
+        if log is not None:
+            log.write(rows)
         problem = non_finite(rows, state)
         if problem is not None:
             if bar is not None:
@@ -245,7 +285,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
             bar.n = min(rows[-1]["episodes"], config.total_episodes)
             bar.set_postfix(reward=f"{np.nanmean([r['episode_reward'] for r in rows]):.3f}")
             bar.refresh()
-        if time.perf_counter() - last_save >= run["checkpoint_every"]:
+        if distributed.agree(time.perf_counter() - last_save >= run["checkpoint_every"]):
             ckpt.save(ckpt_path, state, config_dict, task, int(state.update))
             last_save, saved_update = time.perf_counter(), int(state.update)
     if saved_update != int(state.update):
@@ -255,6 +295,9 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     train_s = time.perf_counter() - t_train
     timing = {"setup_s": setup_s, "first_call_s": compile_s, "train_s": train_s,
               "episodes": int(state.episodes), "updates": int(state.update)}
+    if not writer:
+        print(f"process {jax.process_index()}: trained in {train_s:.1f} s; process 0 writes {out}")
+        return out
     (out / "timing.json").write_text(json.dumps(timing, indent=2))
     print(f"trained {timing['episodes']} episodes in {train_s:.1f} s "
           f"(setup {setup_s:.1f} s, first call incl. compile {compile_s or 0:.1f} s)")
@@ -262,7 +305,9 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     if run["eval_targets"] > 0:
         from gvsjax import evaluate
         seed = run["eval_seed"] if run["eval_seed"] >= 0 else 1_000_003 + config.seed
-        result = evaluate.evaluate_run(ckpt_path, out, n_episodes=run["eval_targets"], seed=seed)
+        # process 0 alone, on its own devices: the others do not join its computations
+        with sharding.unsharded() if jax.process_count() > 1 else contextlib.nullcontext():
+            result = evaluate.evaluate_run(ckpt_path, out, n_episodes=run["eval_targets"], seed=seed)
         print(env.summary(result))
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"outputs in {out}/: {', '.join(written)}")

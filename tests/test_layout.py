@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[1] / "gvsjax"
 # Each module's layer; a module may import only its own layer or lower ones.
 # Layer 0 holds utilities that import nothing from gvsjax.
 LAYERS = {
-    "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding"]),
+    "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding", "gvsjax.distributed"]),
     "lie": (1, ["gvsjax.lie"]),
     "model": (2, ["gvsjax.model", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
     "kinematics": (3, ["gvsjax.kinematics"]),

@@ -98,6 +98,9 @@ RUN_BAD = {
     "resume": st.sampled_from(["maybe", "2", ""]),
     "progress": st.sampled_from(["maybe", "2", ""]),
     "sim_dtype": st.sampled_from(["float16", "x", "int32"]),
+    "coordinator": st.sampled_from(["localhost", "host:0", "host:99999", ":80"]),
+    "num_processes": st.sampled_from(["0", "-1", "1.5", "x"]),
+    "process_id": st.sampled_from(["-1", "1", "1.5", "x"]),
     "task": junk,
     "preset": junk,
 }

@@ -23,7 +23,7 @@ from gvsjax.ppo.losses import (
     ppo_loss,
 )
 from gvsjax.ppo.networks import SeparateActorCritic, SharedActorCritic, make_network
-from gvsjax.ppo.rollout import Rollout, TrainState, collect, episode_metrics, policy_action
+from gvsjax.ppo.rollout import Rollout, TrainState, collect, episode_metrics, place, policy_action
 from gvsjax.ppo.train import (
     finetune_start,
     init,
@@ -41,5 +41,5 @@ __all__ = [
     "Batch", "clipped_gaussian_log_prob", "gae", "gaussian_entropy", "gaussian_log_prob", "ppo_loss",
     "SeparateActorCritic", "SharedActorCritic", "make_network",
     "TrainState", "Rollout", "collect", "episode_metrics", "finetune_start", "init", "make_train",
-    "make_update", "num_updates", "phase_hyperparams", "policy_action", "update",
+    "make_update", "num_updates", "phase_hyperparams", "place", "policy_action", "update",
 ]

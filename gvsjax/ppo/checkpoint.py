@@ -7,6 +7,9 @@ where ``payload`` is itself msgpack of ``{"train_state": flax to_bytes(state),
 temporary file in the same folder, is fsync'ed, then ``os.replace``d over the
 target, so a crash never leaves a half-written checkpoint under the real name.
 A truncated or altered file raises ``CheckpointError`` naming the file.
+With several processes (``gvsjax.distributed``) ``save`` is collective: the
+state is gathered whole, process 0 writes, and every process returns once the
+file is in place; ``load`` then reads the same file on every process.
 
 PRNG keys: typed keys (``jax.random.key``) are stored as their raw key data
 and re-wrapped on load; legacy uint32 keys are stored as they are.
@@ -25,6 +28,7 @@ import jax
 import jax.numpy as jnp
 from flax import serialization
 
+from gvsjax import distributed
 from gvsjax.ppo.config import config_from_json
 from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import policy_action
@@ -72,9 +76,19 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 
 def save(path, train_state, config: dict, task: str, step: int, extra: dict | None = None) -> None:
-    """Save ``train_state`` (any pytree) with its config (JSON-able dict) atomically."""
+    """Save ``train_state`` (any pytree) with its config (JSON-able dict) atomically.
+
+    Several processes: every one calls it; process 0 writes the gathered state.
+    """
+    whole = distributed.fetch(_raw(train_state))  # collective when split over processes
+    if distributed.is_main():
+        _write(path, whole, config, task, step, extra)
+    distributed.barrier(f"checkpoint {step}")  # nobody reads it before it is there
+
+
+def _write(path, train_state, config: dict, task: str, step: int, extra: dict | None) -> None:
     payload = serialization.msgpack_serialize({
-        "train_state": serialization.to_bytes(_raw(jax.device_get(train_state))),
+        "train_state": serialization.to_bytes(train_state),
         "config": json.dumps(config),  # JSON: msgpack here cannot hold tuples
         "task": task,
         "step": int(step),

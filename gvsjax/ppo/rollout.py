@@ -80,6 +80,22 @@ def shardings(config: PPOConfig):
     return sharding.batch_spec(mesh), sharding.replicated(mesh)
 
 
+# TrainState fields batched over num_envs; the others are the same on every device
+_ENV_FIELDS = ("env_state", "last_obs", "episode_return")
+
+
+def place(config: PPOConfig, state: TrainState) -> TrainState:
+    """A whole process-local ``state`` (from ``init`` under ``sharding.unsharded()``, or a
+    checkpoint) laid out for training: env axis split over the mesh, the rest replicated.
+
+    With several processes each keeps its own devices' envs. One device: ``state``.
+    """
+    envs, everywhere = shardings(config)
+    return dataclasses.replace(state, **{
+        f.name: sharding.put(getattr(state, f.name), envs if f.name in _ENV_FIELDS else everywhere)
+        for f in dataclasses.fields(state)})
+
+
 def collect(
     config: PPOConfig, env, env_params: PyTree, state: TrainState
 ) -> tuple[TrainState, Rollout]:
