@@ -32,8 +32,9 @@ import numpy as np
 from flax import struct
 
 from gvsjax import lie
-from gvsjax.kinematics import ZANNA, Point, advance, forward, grid_of, magnus, rest_strain, strain, strain_rate
+from gvsjax.kinematics import forward
 from gvsjax.lie import zeros
+from gvsjax.magnus import ZANNA, Point, advance, grid_of, magnus, rest_strain, strain, strain_rate
 from gvsjax.model import RigidLink, Robot, SoftLink
 from gvsjax.obstacles import OBSTACLES, TINY, Box, Capsule, Plane, Sphere
 from gvsjax.validation import concrete, finite, integer, nonnegative, positive, require
@@ -78,6 +79,10 @@ class Contact:
     site: Penalty = Penalty(stiffness=1e5, damping=200.0, smoothing=1e-4)
     sites: tuple = ()
     n_points: int = struct.field(pytree_node=False, default=21)
+
+    def validate(self, robot: Robot) -> None:
+        """``check_robot``'s hook: ``check`` (a bad value raises, naming it)."""
+        check(robot)
 
     def material_points(self, link: SoftLink) -> tuple[float, ...]:
         """The contact samples' X on a soft link."""
@@ -177,7 +182,7 @@ def _stack(xs: list, n_c: int):
 
 
 def _columns(raw: np.ndarray, inv_length, dtype) -> list[tuple]:
-    """``kinematics.scaled_columns`` for per-sample raw bases (n_c, 6, n): (n_c,) scalars."""
+    """``magnus.scaled_columns`` for per-sample raw bases (n_c, 6, n): (n_c,) scalars."""
     return [tuple(0 if not np.any(raw[:, r, k]) else
                   (jnp.asarray(raw[:, r, k], dtype) * inv_length if r < 3 else jnp.asarray(raw[:, r, k], dtype))
                   for r in range(6)) for k in range(raw.shape[2])]

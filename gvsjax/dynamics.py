@@ -23,8 +23,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import contact, lie, tendons
-from gvsjax.kinematics import Point, coords, forward, grid_of, point_at, rows
+from gvsjax.kinematics import coords, forward, point_at, rows
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd
+from gvsjax.magnus import Point, grid_of
 from gvsjax.model import RigidLink, Robot, SoftLink
 
 # ----------------------------------------------------------------------------

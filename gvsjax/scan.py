@@ -1,6 +1,6 @@
 """The kinematic pass over one soft link as a ``lax.scan`` (``SoftLink.recursion``).
 
-The unrolled pass (``kinematics``) traces one Magnus step per interval and one
+The unrolled pass (``kinematics.forward``) traces one Magnus step per interval and one
 scalar chain per Jacobian column, so its compiled program grows with n_gauss
 times the DoFs, and XLA's compile time faster still. Here one step is traced
 whatever ``n_gauss``, and the Jacobian's columns travel as one 6-vector of
@@ -17,8 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import XI_STAR, Point, grid_of, magnus, rest_strain, zanna_points
 from gvsjax.lie import mul, vadd, zeros
+from gvsjax.magnus import XI_STAR, Point, grid_of, magnus, rest_strain, zanna_points
 from gvsjax.model import SoftLink
 
 # "auto" scans a soft link with at least this many strain DoFs and Gauss points (docs/speed.md)

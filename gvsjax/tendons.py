@@ -26,8 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax import lie
-from gvsjax.kinematics import grid_of, rest_strain, scaled_columns, strain
 from gvsjax.lie import add, const, dot, mul, vadd, vscale
+from gvsjax.magnus import grid_of, rest_strain, scaled_columns, strain
 from gvsjax.model import Robot, RoutedTendon, SoftLink, Tendon, TendonPath
 
 

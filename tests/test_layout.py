@@ -13,9 +13,9 @@ ROOT = Path(__file__).resolve().parents[1] / "gvsjax"
 LAYERS = {
     "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding", "gvsjax.distributed"]),
     "lie": (1, ["gvsjax.lie"]),
-    "model": (2, ["gvsjax.model", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
-    "kinematics": (3, ["gvsjax.kinematics"]),
-    "dynamics": (4, ["gvsjax.tendons", "gvsjax.dynamics"]),
+    "model": (2, ["gvsjax.model", "gvsjax.obstacles", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
+    "kinematics": (3, ["gvsjax.magnus", "gvsjax.scan", "gvsjax.kinematics"]),
+    "dynamics": (4, ["gvsjax.tendons", "gvsjax.contact", "gvsjax.dynamics"]),
     "integrators": (5, ["gvsjax.integrators"]),
     "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
                        "gvsjax.simulation", "gvsjax.statics"]),
