@@ -36,7 +36,7 @@ Reported at the end: the fitted exponent p of step time ~ n^p and compile time ~
 recursion and batch, and the scan / unrolled ratios. ``--replot`` redraws the figure
 (``figures/bench_dofs.png``: compile time, memory and step time vs DoFs, log axes, an n^2 line).
 
-    python experiments/bench_dofs.py --quick                          # rod0-1, chain1-2 (~15 min idle)
+    python experiments/bench_dofs.py --quick                          # rod0-1, chain1-2 (28 min at load 6)
     python experiments/bench_dofs.py                                  # everything (hours)
     python experiments/bench_dofs.py --configs rod2,rod3 --recursions scan --merge
     python experiments/bench_dofs.py --replot
@@ -157,7 +157,8 @@ def measure(config: str, recursion: str, batches, n_steps: int, repeats: int, ou
             hlo_lines=lowered.as_text().count("\n"), run_s=run_s, runs_s=runs, step_s=run_s / n_steps,
             arm_steps_per_s=batch * n_steps / run_s, finite=bool(np.all(np.isfinite(tips))),
             tip_lanes=lanes.tolist(), tips=tips[lanes].tolist(), **planned_bytes(compiled)))
-        row["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+        row["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # so far
+        row["batches"][-1]["peak_rss_bytes_so_far"] = row["peak_rss_bytes"]
         row["load_end"] = load_average()
         _write(out, row)
         print(f"  {config} {recursion} batch {batch}: compile {t2 - t0:.1f} s (lower {t1 - t0:.1f}), "
@@ -253,12 +254,14 @@ def plot(res, path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
 
     rows = [r for r in res["rows"] if r.get("batches")]
     if not rows:
         return
     panels = [("compile time (s): trace + lower + XLA", lambda b, r: b["compile_s"], None),
-              ("XLA planned memory (MiB)", lambda b, r: b.get("xla_planned_bytes", np.nan) / 2**20, None),
+              ("memory (MiB): XLA planned, and the process's peak RSS", lambda b, r: b.get("xla_planned_bytes",
+                                                                                          np.nan) / 2**20, None),
               ("step time, batch 1 (ms per step)", lambda b, r: b["step_s"] * 1e3, 1),
               ("step time, batch 1024 (ms per step)", lambda b, r: b["step_s"] * 1e3, 1024)]
     colour = {"unrolled": "C0", "scan": "C1"}
@@ -279,11 +282,26 @@ def plot(res, path) -> None:
             y0 = float(np.exp(np.mean(np.log(ally[good & (allx == allx.min())]))))
             xs = np.geomspace(n0, n1, 20)
             ax.loglog(xs, y0 * (xs / n0) ** 2, ":", color="gray", label="$\\propto n^2$")
+        if title.startswith("memory"):  # compilation's footprint: one value per process (both batches)
+            for family, recursion in dict.fromkeys((r["family"], r["recursion"]) for r in rows):
+                pts = sorted((r["dofs"], r["peak_rss_bytes"] / 2**20) for r in rows
+                             if (r["family"], r["recursion"]) == (family, recursion) and "peak_rss_bytes" in r)
+                if pts:
+                    ax.loglog(*zip(*pts), marker="x" if family == "rod" else "+", ls="-.",
+                              color=colour.get(recursion, "k"), label=f"{family}, {recursion}, peak RSS")
+        if title.startswith("compile"):  # issue 20's targets
+            ax.loglog([6, 24], [15, 30], "k*", ms=9, ls="none", label="target (15 s at 6, 30 s at 24 DoFs)")
         ax.set_xlabel("DoFs n")
         ax.set_title(title, fontsize=10)
-        ax.set_xticks([6, 12, 18, 24, 36])
-        ax.set_xticklabels(["6", "12", "18", "24", "36"])
-        ax.minorticks_off()
+        ax.set_xlim(5, 42)
+        ax.set_xticks([6, 12, 18, 24, 30, 36])
+        ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.xaxis.set_minor_locator(ticker.NullLocator())
+        lo, hi = ax.get_ylim()
+        ax.yaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0,) if hi / lo > 1e3 else (1.0, 2.0, 5.0)))
+        ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_locator(ticker.NullLocator())
+        ax.grid(True, which="major", alpha=0.3)
         if curves:
             ax.legend(fontsize=7)
     quick = " (--quick)" if res.get("quick") else ""
@@ -298,16 +316,17 @@ def plot(res, path) -> None:
 def print_tables(res) -> None:
     print(f"\nload at start: {res.get('load_start')}\nload at end:   {res.get('load_end')}")
     print("\n| config | DoFs | Gauss pts | recursion | batch | compile s (lower + XLA) | step ms | "
-          "arm-steps/s | XLA planned MiB | StableHLO lines | status |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "arm-steps/s | XLA planned MiB | peak RSS MiB (so far) | StableHLO lines | status |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in res["rows"]:
         if not r.get("batches"):
-            print(f"| {r['config']} | {r['dofs']} | {r['n_gauss_total']} | {r['recursion']} | - | - | - | - | - | - | "
-                  f"{r.get('status')}: {r.get('reason', '')} |")
+            print(f"| {r['config']} | {r['dofs']} | {r['n_gauss_total']} | {r['recursion']} | "
+                  f"{'- | ' * 7}{r.get('status')}: {r.get('reason', '')} |")
         for b in r.get("batches", []):
             print(f"| {r['config']} | {r['dofs']} | {r['n_gauss_total']} | {r['recursion']} | {b['batch']} | "
                   f"{b['compile_s']:.1f} ({b['lower_s']:.1f} + {b['xla_compile_s']:.1f}) | {b['step_s'] * 1e3:.3g} | "
-                  f"{b['arm_steps_per_s']:,.0f} | {b.get('xla_planned_bytes', 0) / 2**20:.2f} | {b['hlo_lines']:,} | "
+                  f"{b['arm_steps_per_s']:,.0f} | {b.get('xla_planned_bytes', 0) / 2**20:.2f} | "
+                  f"{b.get('peak_rss_bytes_so_far', r.get('peak_rss_bytes', 0)) / 2**20:,.0f} | {b['hlo_lines']:,} | "
                   f"{r.get('status')} |")
     print("\n| config | DoFs | max tip difference (m) | step scan / unrolled, batch 1 / 1024 | "
           "compile scan / unrolled, batch 1 / 1024 |")
