@@ -172,6 +172,7 @@ def test_bad_mount_is_named():
     raises_naming("Joint.offset", gv.Joint, "fixed", offset=(0.0, np.nan, 0.0))
 
 
+@pytest.mark.extended
 def test_a_routed_tendon_follows_the_tree():
     """A cable may run from the trunk into one branch (its child) but not from one branch
     into the other."""

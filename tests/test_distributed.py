@@ -78,6 +78,7 @@ def _flat(tree, prefix=""):
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_two_processes_train_checkpoint_resume_equal_one_process(tmp_path):
     two, one = tmp_path / "two", tmp_path / "one"
     # the reference first: the processes then find its programs in the compilation cache

@@ -35,7 +35,8 @@ ROBOTS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(ROBOTS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.extended) if n == "rigid_soft" else n
+                                  for n in sorted(ROBOTS)])
 def test_recursion_equals_lagrangian_autodiff(name):
     """M and F from the recursion equal those of the discrete Lagrangian,
     differentiated by autodiff: M = d2T/dqd2, F = dL/dq - (d2L/dqd dq) qd."""
@@ -63,6 +64,7 @@ def test_mass_matrix_at_rest_matches_closed_form():
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_rigid_soft_chain_conserves_energy_with_free_joints():
     robot = rigid_soft_chain(n_gauss=2)  # conservation holds for any quadrature; 2 points compile fastest
     qd0 = np.zeros(robot.n_dofs)
@@ -96,6 +98,7 @@ def _loaded_rod(force_y=0.0, force_z=0.0, torque_x=0.0):
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_3d_rod_lateral_load_is_symmetric_and_matches_planar_bending():
     P = 3.0
     tip_y = np.asarray(_static_state(_loaded_rod(force_y=P)).tip[-1])
@@ -111,6 +114,7 @@ def test_3d_rod_lateral_load_is_symmetric_and_matches_planar_bending():
     assert tip_y[1] > 0.02
 
 
+@pytest.mark.extended
 def test_pure_tip_torque_gives_pure_torsion():
     torque = 0.2  # N m about the rod axis
     rod = _loaded_rod(torque_x=torque)

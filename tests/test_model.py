@@ -6,6 +6,7 @@ import gvsjax as gv  # noqa: I001  (first: it configures JAX)
 import math
 
 import numpy as np
+import pytest
 from helpers import FAST, nan_inf, not_a_number, not_positive, raises_naming
 from hypothesis import example, given
 from hypothesis import strategies as st
@@ -126,6 +127,7 @@ def test_tendon_arm_numbers_trace_under_jit_vmap_and_grad():
     np.testing.assert_allclose(values, values[1] * E / 1e6, rtol=1e-12)
 
 
+@pytest.mark.extended
 def test_monomial_and_legendre_give_the_same_arm():
     """Same span, same quadrature: the two bases are one model in other coordinates."""
     theta_f, T = np.deg2rad(210.0), 0.8

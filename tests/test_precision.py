@@ -63,6 +63,7 @@ def test_unsupported_dtype_is_named(dtype):
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_basketball_with_a_float32_simulator_keeps_float64_states_and_the_outcome():
     """``sim_dtype="float32"`` (what ``gvsjax.train sim_dtype=float32`` trains on): the env's
     outputs and carried state keep their float64 dtypes (PPO's scans carry them), and the
@@ -84,6 +85,7 @@ def test_basketball_with_a_float32_simulator_keeps_float64_states_and_the_outcom
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_pickplace_with_a_float32_simulator_keeps_float64_states_and_the_outcome():
     from gvsjax.tasks import make
     from gvsjax.tasks import pickplace as pp

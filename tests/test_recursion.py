@@ -81,6 +81,7 @@ def test_scan_and_unrolled_agree_on_every_output():
     assert float(jnp.abs(a["F"]).max()) > 1.0  # the comparison is not between zeros
 
 
+@pytest.mark.extended
 def test_scan_matches_under_jit_vmap_and_grad():
     robot = chain()
     n = robot.n_dofs
@@ -120,7 +121,7 @@ def test_a_bad_recursion_is_refused_by_name():
     raises_naming("links[0].recursion", check_robot, gv.Robot(links=(link,)))
 
 
-@pytest.mark.parametrize("recursion", ["unrolled", "scan"])
+@pytest.mark.parametrize("recursion", [pytest.param("unrolled", marks=pytest.mark.extended), "scan"])
 def test_a_spatial_cantilever_under_a_tip_couple_is_a_closed_form_arc(recursion):
     """A pure end couple bends a rod into an arc of curvature m / EI (exact in Cosserat
     theory); with constant bending about y and z the tip sits on that arc."""

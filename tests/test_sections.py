@@ -128,6 +128,7 @@ def test_section_parameters_are_checked():
         gv.simulate(cantilever(0.0, (0.0, -1.0, 0.0), BEND_Z, rest_strain=jnp.ones(5)), 0.01, 1e-3)
 
 
+@pytest.mark.extended
 def test_taper_is_differentiable():
     """d(tip height)/d(taper) at equilibrium by the implicit function theorem, from JAX's
     derivatives of the generalized forces, equals a central difference of the equilibria."""

@@ -58,6 +58,7 @@ def workload() -> dict[str, np.ndarray]:
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_two_devices_equal_one_device(tmp_path):
     out = tmp_path / "two.npz"
     env = dict(os.environ)

@@ -173,6 +173,7 @@ def test_generalized_force_is_minus_tension_times_the_gradient_of_the_cable_leng
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_simulate_with_a_routed_tendon_under_jit_vmap_and_grad():
     robot = _rod((-1, -1, 1, -1, -1, -1)).replace(gravity=0.0)
     robot = robot.replace(links=(robot.links[0].replace(material=gv.Material(E, 1000.0, 1e5, NU)),))

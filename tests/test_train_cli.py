@@ -212,6 +212,7 @@ def test_training_targets_differ_from_evaluation_only_where_the_task_says_so():
         train.parse_args(["task=pickplace", "train_targets=mixed"])
 
 
+@pytest.mark.extended
 def test_sim_dtype_reaches_the_training_params_only():
     for task in ("basketball", "pickplace"):
         env = make(task)
