@@ -148,8 +148,8 @@ def test_registry():
     assert make("basketball").obs_size == 2
 
 
-@pytest.mark.parametrize("mode, far_range", [pytest.param("area", (0.4, 0.65), marks=pytest.mark.extended),
-                                             ("mixed", (0.22, 0.45))])
+@pytest.mark.extended
+@pytest.mark.parametrize("mode, far_range", [("area", (0.4, 0.65)), ("mixed", (0.22, 0.45))])
 def test_area_and_mixed_sampling_are_reachable_and_spread(mode, far_range):
     P = bb.make_params(target_sampling=mode, n_grid_T=32, n_grid_delta=8)
     keys = jax.random.split(jax.random.PRNGKey(3), 512)

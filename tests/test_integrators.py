@@ -96,7 +96,8 @@ def test_ars443_beyond_rk4_stability():
 
 
 @pytest.mark.parametrize("robot", [gv.paper_arm(tip_force=5.886),
-                                   gv.rod_3d(order=(0, 0, 0, -1, -1, -1), n_gauss=2, gravity=9.81)],
+                                   pytest.param(gv.rod_3d(order=(0, 0, 0, -1, -1, -1), n_gauss=2, gravity=9.81),
+                                                marks=pytest.mark.extended)],
                          ids=["paper_arm_prescribed_base", "twisting_bending_rod"])
 def test_ars443_folded_and_split_layouts_are_one_scheme(robot):
     """``ars443`` picks a loop layout by the number of free DoFs; both layouts must be the

@@ -53,7 +53,7 @@ def test_free_vibration_first_frequency(n_modes, basis, expected, rtol):
     assert omega == pytest.approx(expected, rel=rtol)
 
 
-@pytest.mark.parametrize("n_modes", [2, 4])
+@pytest.mark.parametrize("n_modes", [2, pytest.param(4, marks=pytest.mark.extended)])
 def test_large_deflection_cantilever_matches_elastica(n_modes):
     # horizontal cantilever, dead tip load P L^2/EI = 1, gravity off, damped to rest
     arm = gv.paper_arm(gravity=0.0, tip_force=EI, n_modes=n_modes, basis="legendre")

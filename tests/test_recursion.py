@@ -68,6 +68,7 @@ def test_auto_scans_the_large_spatial_link_only():
     assert not scan.uses_scan(gv.paper_arm().links[0])
 
 
+@pytest.mark.extended
 def test_scan_and_unrolled_agree_on_every_output():
     robot = chain()
     q, qd = _state(robot)
@@ -104,6 +105,7 @@ def test_scan_matches_under_jit_vmap_and_grad():
     assert float(jnp.abs(ref_grad)) > 0
 
 
+@pytest.mark.extended
 def test_scan_keeps_float32():
     robot = gv.rod_3d(order=1, n_gauss=3, gravity=9.81)
     q, qd = _state(robot, 1, np.float32)

@@ -71,6 +71,7 @@ def test_controller_gradient_and_batch():
     np.testing.assert_allclose(g, fd, rtol=1e-5)
 
 
+@pytest.mark.extended
 def test_tendon_tension_of_the_state_is_recorded_at_each_saved_state():
     """The recorded tension is the law at the saved state (what was applied there)."""
     arm = gv.paper_arm(tendon_offset=0.025, gravity=0.0)
