@@ -290,7 +290,7 @@ def plot(res, path) -> None:
                     ax.loglog(*zip(*pts), marker="x" if family == "rod" else "+", ls="-.",
                               color=colour.get(recursion, "k"), label=f"{family}, {recursion}, peak RSS")
         if title.startswith("compile"):  # issue 20's targets
-            ax.loglog([6, 24], [15, 30], "k*", ms=9, ls="none", label="target (15 s at 6, 30 s at 24 DoFs)")
+            ax.loglog([6, 24], [15, 30], "k*", ms=9, ls="none", zorder=6, label="target (15 s at 6, 30 s at 24 DoFs)")
         ax.set_xlabel("DoFs n")
         ax.set_title(title, fontsize=10)
         ax.set_xlim(5, 42)
@@ -303,7 +303,7 @@ def plot(res, path) -> None:
         ax.yaxis.set_minor_locator(ticker.NullLocator())
         ax.grid(True, which="major", alpha=0.3)
         if curves:
-            ax.legend(fontsize=7)
+            ax.legend(fontsize=7, framealpha=0.5)  # the targets (zorder 6) show through
     quick = " (--quick)" if res.get("quick") else ""
     fig.suptitle(f"Spatial rods, ars443, {res.get('n_steps')} steps of {DT * 1e3:g} ms{quick}; "
                  f"load {res.get('load_start', '').split('load average:')[-1].strip()}", fontsize=9)
