@@ -161,16 +161,10 @@ def first_bending_omega() -> float:
     return 1.8751**2 * math.sqrt(P["youngs_modulus"] * I / (rhoA * P["length"] ** 4))
 
 
-def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", record_every=0):
-    """One PyElastica throw to release. Returns dict(tip, tip_velocity, wall_s, setup_s, n_steps,
-    path (k, 3) tip positions if record_every, stretch max |1 - |dx|/l0| at release)."""
-    ea, KelvinVoigtDamper, TipForce, SwingingBase = _elastica()
-    t_setup = time.perf_counter()
-
-    class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
-        pass
-
-    sim = Sim()
+def swinging_rod(sim, n_elements: int, T: float):
+    """The arm as a PyElastica rod in ``sim`` (a system collection with constraints and forcing):
+    hanging along -y, its base swung by ``SwingingBase``, gravity and the ball's weight on the tip."""
+    ea, _, TipForce, SwingingBase = _elastica()
     rod = ea.CosseratRod.straight_rod(
         n_elements, start=np.zeros(3), direction=np.array([0.0, -1.0, 0.0]), normal=np.array([0.0, 0.0, 1.0]),
         base_length=P["length"], base_radius=P["radius"], density=P["density"],
@@ -179,6 +173,20 @@ def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", re
     sim.constrain(rod).using(SwingingBase, constrained_position_idx=(0,), constrained_director_idx=(0,), T=T)
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, -P["gravity"], 0.0]))
     sim.add_forcing_to(rod).using(TipForce, force=(0.0, -BALL, 0.0))
+    return rod
+
+
+def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", record_every=0):
+    """One PyElastica throw to release. Returns dict(tip, tip_velocity, wall_s, setup_s, n_steps,
+    path (k, 3) tip positions if record_every, stretch max |1 - |dx|/l0| at release)."""
+    ea, KelvinVoigtDamper, _, _ = _elastica()
+    t_setup = time.perf_counter()
+
+    class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
+        pass
+
+    sim = Sim()
+    rod = swinging_rod(sim, n_elements, T)
     t_rel = delta * T
     n_steps = int(math.ceil(t_rel / dt - 1e-9))
     h = t_rel / n_steps

@@ -34,7 +34,7 @@ import time
 
 import jax
 import numpy as np
-from bench_pyelastica import BALL, THETA_F, _elastica  # experiments/ is on sys.path when run as a script
+from bench_pyelastica import BALL, THETA_F, _elastica, swinging_rod  # experiments/ is on sys.path when run as a script
 from bench_sim import load_average
 
 import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
@@ -68,20 +68,13 @@ def gvsjax_path(n_modes: int, with_sphere: bool, dt: float = 1e-3) -> dict:
 
 
 def pyelastica_path(with_sphere: bool, n_elements: int, dt: float) -> dict:
-    ea, KelvinVoigtDamper, TipForce, SwingingBase = _elastica()
+    ea, KelvinVoigtDamper, _, _ = _elastica()
 
     class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.Contact):
         pass
 
     sim = Sim()
-    rod = ea.CosseratRod.straight_rod(
-        n_elements, start=np.zeros(3), direction=np.array([0.0, -1.0, 0.0]), normal=np.array([0.0, 0.0, 1.0]),
-        base_length=P["length"], base_radius=P["radius"], density=P["density"],
-        youngs_modulus=P["youngs_modulus"], shear_modulus=P["youngs_modulus"] / (2.0 * (1.0 + P["poisson"])))
-    sim.append(rod)
-    sim.constrain(rod).using(SwingingBase, constrained_position_idx=(0,), constrained_director_idx=(0,), T=T_SWING)
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, -P["gravity"], 0.0]))
-    sim.add_forcing_to(rod).using(TipForce, force=(0.0, -BALL, 0.0))
+    rod = swinging_rod(sim, n_elements, T_SWING)
     if with_sphere:
         sphere = ea.Sphere(center=CENTRE.copy(), base_radius=RADIUS, density=1000.0)
         sim.append(sphere)
