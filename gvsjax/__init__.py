@@ -70,7 +70,7 @@ from gvsjax.model import (  # noqa: E402
     TendonPath,
     axis_rotation,
 )
-from gvsjax.robots import PAPER_ARM, TENDON_ARM, paper_arm, rod_3d, tendon_arm  # noqa: E402
+from gvsjax.robots import PAPER_ARM, SOFT_ARM, TENDON_ARM, paper_arm, rod_3d, soft_arm, tendon_arm  # noqa: E402
 from gvsjax.simulation import simulate  # noqa: E402
 from gvsjax.stability import stable_step_estimate  # noqa: E402
 from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
@@ -79,7 +79,7 @@ from gvsjax.trajectory import Trajectory  # noqa: E402
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
     "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "rod_3d", "TENDON_ARM", "tendon_arm",
-    "simulate", "Trajectory", "stable_step_estimate",
+    "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",

@@ -27,8 +27,8 @@ def save(fig, path) -> Path:
     return path
 
 
-def rgb_image(draw: Callable, size: float = 4.0, dpi: int = 80) -> np.ndarray:
-    """An RGB array (H, W, 3) uint8 of ``draw(ax)`` on its own Agg canvas.
+def rgb_image(draw: Callable, size: float = 4.0, dpi: int = 80, projection: str | None = None) -> np.ndarray:
+    """An RGB array (H, W, 3) uint8 of ``draw(ax)`` on its own Agg canvas (``projection="3d"``: 3D axes).
 
     Headless, and neither pyplot's figure list nor the user's backend is touched.
     """
@@ -37,7 +37,7 @@ def rgb_image(draw: Callable, size: float = 4.0, dpi: int = 80) -> np.ndarray:
 
     fig = Figure(figsize=(size, size), dpi=dpi)
     canvas = FigureCanvasAgg(fig)
-    draw(fig.subplots())
+    draw(fig.subplots(subplot_kw={"projection": projection} if projection else None))
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 

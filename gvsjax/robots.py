@@ -1,5 +1,6 @@
 """Ready-made robots. ``paper_arm`` is the 1 m soft arm of Armanini et al.; ``tendon_arm``
-a hanging 3D arm driven by routed tendons from a torque-controlled hub."""
+a hanging 3D arm driven by routed tendons from a torque-controlled hub; ``soft_arm`` the
+upright 3D tendon arm of the closed-loop tasks."""
 
 from __future__ import annotations
 
@@ -207,4 +208,81 @@ def tendon_arm(**overrides: Any) -> Robot:
     return robot
 
 
-__all__ = ["paper_arm", "rod_3d", "tendon_arm", "PAPER_ARM", "TENDON_ARM", "HANGING"]
+SOFT_ARM = dict(
+    length=1.0,  # m
+    radius=0.05,  # m, circular section
+    youngs_modulus=1e7,  # Pa
+    density=1000.0,  # kg/m^3
+    damping=1e5,  # Pa s, material damping eta (SoRoSim's convention, as the paper's arm)
+    poisson=0.5,
+    gravity=9.81,  # m/s^2, along world -z (the arm stands along +z)
+    bending_order=2,  # Legendre order of both bending curvatures
+    torsion_order=0,  # -1: no torsion
+    stretch_order=0,  # -1: inextensible
+    shear_order=-1,  # -1: unshearable (Kirchhoff); 0 or more: both shears
+    n_gauss=4,
+    tendon_offset=0.04,  # m from the midline
+    tendon_ends=(1.0, 0.5),  # X where each group of four tendons is anchored (from the base)
+)
+
+# At rest the rod's local x axis points along world +z, local y along +x and z along +y.
+UPRIGHT = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
+
+
+def soft_arm(**overrides: Any) -> Robot:
+    """An upright 3D soft arm clamped at the origin, driven by groups of four straight tendons.
+
+    The rod stands along world +z with gravity along -z. Each entry X_e of ``tendon_ends``
+    adds four tendons running from the base to material point X_e at ``tendon_offset``
+    from the midline, at 0, 90, 180 and 270 degrees about it (section y, z, -y, -z; at rest
+    world +x, +y, -x, -y): pulling one bends the part below X_e towards it. Two groups
+    (the whole arm and its lower half) give the tip a 3D workspace, as in two-section
+    continuum arms. q holds the strain coefficients of the active components (torsion,
+    the two bending curvatures, stretch, shears) at their Legendre orders (-1: inactive).
+    Keyword overrides (SI units): see ``SOFT_ARM``.
+    """
+    unknown = sorted(set(overrides) - set(SOFT_ARM))
+    if unknown:
+        raise ValueError(f"soft_arm got unknown parameter(s) {unknown}; valid: {sorted(SOFT_ARM)}")
+    p = {**SOFT_ARM, **overrides}
+    for key in ("length", "radius", "youngs_modulus", "density", "tendon_offset"):
+        positive(key, p[key])
+    for key in ("damping", "gravity"):
+        nonnegative(key, p[key])
+    for key in ("torsion_order", "stretch_order", "shear_order"):
+        require(isinstance(p[key], int) and not isinstance(p[key], bool) and p[key] >= -1, key, p[key],
+                "an int >= -1 (-1 = inactive)")
+    require(isinstance(p["bending_order"], int) and not isinstance(p["bending_order"], bool)
+            and p["bending_order"] >= 0, "bending_order", p["bending_order"], "an int >= 0")
+    top = max(p["bending_order"], p["torsion_order"], p["stretch_order"], p["shear_order"])
+    require(isinstance(p["n_gauss"], int) and not isinstance(p["n_gauss"], bool) and p["n_gauss"] >= top + 1,
+            "n_gauss", p["n_gauss"], f"an int >= {top + 1} (highest order + 1)")
+    require(concrete(p["tendon_offset"]) and np.ndim(p["tendon_offset"]) == 0, "tendon_offset",
+            p["tendon_offset"], "a concrete number (not traced)")
+    if concrete(p["radius"]):
+        require(float(p["tendon_offset"]) < float(p["radius"]), "tendon_offset", p["tendon_offset"],
+                f"< radius={float(p['radius'])} m (the tendons run inside the rod)")
+    ends = tuple(p["tendon_ends"])
+    require(all(isinstance(e, (int, float)) and 0.0 < e <= 1.0 for e in ends), "tendon_ends",
+            p["tendon_ends"], "material points X in (0, 1]")
+    d = float(p["tendon_offset"])
+    tendons = []
+    for end in ends:
+        for angle in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
+            u = d * np.array([np.cos(angle), np.sin(angle)])
+            tendons.append(RoutedTendon(paths=(TendonPath(offsets=np.stack([u, u]), link=0,
+                                                          knots=(0.0, float(end)), n_quad=4),)))
+    shear = p["shear_order"]
+    link = SoftLink(length=p["length"], radius=p["radius"],
+                    material=Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"]),
+                    basis=StrainBasis(orders=(p["torsion_order"], p["bending_order"], p["bending_order"],
+                                              p["stretch_order"], shear, shear), kind="legendre"),
+                    joint=Joint("fixed"), n_gauss=p["n_gauss"])
+    robot = Robot(links=(link,), gravity=p["gravity"], gravity_direction=(0.0, 0.0, -1.0),
+                  tendons=tuple(tendons), base_rotation=UPRIGHT)
+    check_robot(robot)
+    return robot
+
+
+__all__ = ["paper_arm", "rod_3d", "tendon_arm", "soft_arm", "PAPER_ARM", "TENDON_ARM", "SOFT_ARM", "HANGING",
+           "UPRIGHT"]

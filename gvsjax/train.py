@@ -283,7 +283,9 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
                 f"python -m gvsjax.train task={task} out={out} resume=true learning_rate=...")
         if bar is not None and rows:
             bar.n = min(rows[-1]["episodes"], config.total_episodes)
-            bar.set_postfix(reward=f"{np.nanmean([r['episode_reward'] for r in rows]):.3f}")
+            finished = [r["episode_reward"] for r in rows if np.isfinite(r["episode_reward"])]
+            if finished:  # long episodes: the first updates may end none
+                bar.set_postfix(reward=f"{np.mean(finished):.3f}")
             bar.refresh()
         if distributed.agree(time.perf_counter() - last_save >= run["checkpoint_every"]):
             ckpt.save(ckpt_path, state, config_dict, task, int(state.update))

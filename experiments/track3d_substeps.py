@@ -1,0 +1,85 @@
+"""How many integrator steps the 3D tasks need per 0.1 s control step, and the cost of one.
+
+Episodes of ``track3d`` with random actions (each held for a control step, as a
+policy acts) are run with ``n_substeps`` ars443 steps per control step and with
+a reference of ``--reference`` steps; the table gives the largest tip distance
+from the reference over the episodes and the env steps per second of a batch.
+
+    python experiments/track3d_substeps.py              # ~5 min on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import gvsjax as gv  # noqa: F401  (XLA flags first)
+from gvsjax.tasks import arm3d, make
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def tips(arm, actions):
+    """Tip after each control step of a batch: actions (B, T, 4) -> (B, T, 3)."""
+
+    def one(acts):
+        def body(carry, a):
+            q, qd = carry
+            tr = arm3d.advance(arm, q, qd, arm3d.tensions(a, arm))
+            return (tr.q[-1], tr.qd[-1]), tr.tip[-1]
+
+        return jax.lax.scan(body, arm3d.rest(arm.robot), acts)[1]
+
+    return jax.vmap(one)(actions)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--substeps", default="1,2,4,8")
+    ap.add_argument("--reference", type=int, default=64)
+    ap.add_argument("--episodes", type=int, default=64)
+    ap.add_argument("--batch", type=int, default=1024, help="batch of the timing")
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "track3d_substeps.json"))
+    args = ap.parse_args()
+    env = make("track3d")
+    arm = env.default_params().arm
+    actions = jax.random.uniform(jax.random.PRNGKey(0), (args.episodes, env.episode_length, env.action_size),
+                                 minval=-1, maxval=1)
+    ref = np.asarray(jax.jit(tips, static_argnums=())(dataclasses.replace(arm, n_substeps=args.reference), actions))
+    rows = []
+    for n in [int(s) for s in args.substeps.split(",")]:
+        a = dataclasses.replace(arm, n_substeps=n)
+        err = np.linalg.norm(np.asarray(jax.jit(tips)(a, actions)) - ref, axis=-1)
+        step = jax.jit(jax.vmap(lambda q, qd, T, a=a: arm3d.advance(a, q, qd, T).q[-1]))
+        q = jnp.zeros((args.batch, arm.robot.n_dofs))
+        T = jnp.full((args.batch, len(arm.robot.tendons)), 500.0)
+        t0 = time.perf_counter()
+        jax.block_until_ready(step(q, q, T))
+        compile_s = time.perf_counter() - t0
+        runs = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            jax.block_until_ready(step(q, q, T))
+            runs.append(time.perf_counter() - t0)
+        rows.append({"n_substeps": n, "max_tip_error_m": float(err.max()),
+                     "p95_tip_error_m": float(np.percentile(err, 95)),
+                     "compile_s": compile_s, "env_steps_per_s": args.batch / float(np.median(runs))})
+        print(rows[-1], flush=True)
+    Path(args.json).write_text(json.dumps({"reference_substeps": args.reference, "episodes": args.episodes,
+                                           "batch": args.batch, "rows": rows}, indent=1))
+    print(f"\n| ars443 steps per 0.1 s | max tip error | p95 | env steps/s (batch {args.batch}) |")
+    print("|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['n_substeps']} | {1e3 * r['max_tip_error_m']:.2f} mm | {1e3 * r['p95_tip_error_m']:.2f} mm | "
+              f"{r['env_steps_per_s']:.0f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,97 @@
+"""The upright 3D tendon arm the closed-loop tasks control (``gv.soft_arm``).
+
+A policy acts every ``control_dt`` seconds; in between the tensions are held
+(zero-order hold) while the physics takes ``n_substeps`` ``ars443`` steps.
+Actions are four numbers in [-1, 1], one per bending direction of each tendon
+group: ``a > 0`` pulls the group's tendon on the +side (section +y or +z) with
+``a * tension_max``, ``a < 0`` the opposite one, so opposing tendons never pull
+together (co-contraction would only compress the arm) and every tension is
+>= 0. The arm is observed through its tip (position, velocity) and its strain
+coordinates and rates, each scaled to order one.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from gvsjax.model import Robot, SoftLink
+from gvsjax.robots import soft_arm
+from gvsjax.simulation import simulate
+
+ANGULAR_SCALE = 3.0  # 1/m: torsion and curvature coefficients are observed / this
+LINEAR_SCALE = 0.05  # stretch and shear coefficients / this
+RATE_FACTOR = 10.0  # rates are observed / (10 1/s x the coordinate's scale)
+Q_BOUND = 50.0  # beyond |q| / scale = 50 a state is treated as diverged (curvature > 150 / m)
+QD_BOUND = 1e3
+
+
+@struct.dataclass
+class ArmParams:
+    """The arm, its actuation and the control rate (SI units)."""
+
+    robot: Robot = struct.field(default_factory=soft_arm)
+    tension_max: float = 3000.0  # N per tendon
+    control_dt: float = 0.1  # s between actions
+    n_substeps: int = struct.field(pytree_node=False, default=4)  # ars443 steps per control step
+    integrator: str = struct.field(pytree_node=False, default="ars443")
+
+
+def n_actions(robot: Robot) -> int:
+    """Two per group of four tendons."""
+    return len(robot.tendons) // 2
+
+
+def check(arm: ArmParams) -> None:
+    """The arm is one soft link with groups of four tendons (``gv.soft_arm``)."""
+    robot = arm.robot
+    if len(robot.links) != 1 or not isinstance(robot.links[0], SoftLink) or len(robot.tendons) % 4 or not robot.tendons:
+        raise ValueError("ArmParams.robot must be a gv.soft_arm(...): one soft link and groups of four tendons")
+
+
+def tensions(action: jax.Array, arm: ArmParams) -> jax.Array:
+    """Actions (..., 2 g) in [-1, 1] (clipped) -> tensions (..., 4 g) N, >= 0."""
+    a = jnp.clip(action, -1.0, 1.0) * arm.tension_max
+    groups = a.reshape(a.shape[:-1] + (-1, 2))  # (..., g, [y, z])
+    pull = jnp.concatenate([jnp.maximum(groups, 0.0), jnp.maximum(-groups, 0.0)], -1)  # +y, +z, -y, -z
+    return pull.reshape(a.shape[:-1] + (-1,))
+
+
+def advance(arm: ArmParams, q, qd, tension, save_every: int | None = None):
+    """One control step with ``tension`` held: the ``Trajectory`` (its last state the new one)."""
+    return simulate(arm.robot, arm.control_dt, n_steps=arm.n_substeps, tendon_force=tension, q0=q, qd0=qd,
+                    save_every=save_every or arm.n_substeps, integrator=arm.integrator, check_stability=False)
+
+
+def coordinate_scales(robot: Robot) -> np.ndarray:
+    """(n,) the scale each strain coordinate is observed in (angular or linear strain)."""
+    link = robot.links[0]
+    return np.concatenate([np.full(order + 1, ANGULAR_SCALE if c < 3 else LINEAR_SCALE)
+                           for c, order in enumerate(link.basis.orders) if order >= 0])
+
+
+def arm_features(robot: Robot, q, qd, tip, tip_velocity) -> jax.Array:
+    """(6 + 2 n,) the tip's position (m) and velocity (m/s), q and qd, each scaled to ~1."""
+    s = jnp.asarray(coordinate_scales(robot))
+    return jnp.concatenate([tip, tip_velocity, q / s, qd / (RATE_FACTOR * s)])
+
+
+def healthy(robot: Robot, q, qd) -> jax.Array:
+    """False when the state is non-finite or beyond the divergence bounds."""
+    s = jnp.asarray(coordinate_scales(robot))
+    return jnp.all(jnp.abs(q / s) <= Q_BOUND) & jnp.all(jnp.abs(qd / s) <= QD_BOUND)
+
+
+def rest(robot: Robot) -> tuple[jax.Array, jax.Array]:
+    """q = qd = 0: straight and unstressed; upright, the arm then settles by its weight
+    (an axial sag of rho g L^2 / 2E, 0.5 mm for the default arm)."""
+    n = robot.n_dofs
+    return jnp.zeros(n), jnp.zeros(n)
+
+
+__all__: list[Any] = ["ArmParams", "n_actions", "check", "tensions", "advance", "coordinate_scales",
+                      "arm_features", "healthy", "rest"]

@@ -1,0 +1,103 @@
+"""track3d's drawings: distance over time, tip and target paths in 3D, a frame, an episode GIF."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from gvsjax import plots
+from gvsjax.kinematics import backbone
+from gvsjax.model import Robot
+
+LIMITS = ((-0.9, 0.9), (-0.9, 0.9), (0.0, 1.1))  # m, the drawn volume
+
+
+def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path) -> Path:
+    """Median and 5-95% band of the tip-to-target distance at each control step, with the
+    distance an arm left at rest would have."""
+    t = dt * np.arange(1, distance.shape[1] + 1)
+    cm = 100 * np.where(np.isfinite(distance), distance, np.nan)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.fill_between(t, np.nanpercentile(cm, 5, 0), np.nanpercentile(cm, 95, 0), alpha=0.25, color="tab:blue",
+                    label="policy, 5-95%")
+    ax.plot(t, np.nanmedian(cm, 0), color="tab:blue", lw=2, label="policy, median")
+    ax.plot(t, np.median(100 * rest, 0), color="0.4", ls="--", label="arm left at rest, median")
+    for level in (5, 10):
+        ax.axhline(level, color="tab:green", lw=0.8, ls=":")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("tip-to-target distance [cm]")
+    ax.set_ylim(0, max(10.0, float(np.nanpercentile(cm, 99))) * 1.05)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right")
+    ax.set_title(f"tracking over {distance.shape[0]} episodes")
+    return plots.save(fig, path)
+
+
+def paths_3d(tip: np.ndarray, target: np.ndarray, path) -> Path:
+    """Tip (solid) and target (dashed) paths of a few episodes (n, T, 3)."""
+    fig = plt.figure(figsize=(6, 6))
+    ax = fig.add_subplot(projection="3d")
+    for i in range(tip.shape[0]):
+        color = f"C{i}"
+        ax.plot(*target[i].T, color=color, ls="--", lw=1)
+        ax.plot(*tip[i].T, color=color, lw=1.8, label=f"episode {i + 1}")
+        ax.scatter(*target[i, 0], color=color, marker="o", s=20)
+    _axes(ax)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title("tip (solid) and target (dashed)")
+    return plots.save(fig, path)
+
+
+def evaluation_figures(extra: dict, out: Path) -> list[Path]:
+    """The figures of an evaluation (``Track3D.evaluate``'s ``extra``)."""
+    d = extra["distance"]
+    return [distance_over_time(d, extra["rest_distance"], extra["dt"], out / "tracking_distance.png"),
+            paths_3d(extra["tip"], extra["target"], out / "tracking_paths.png"),
+            plots.error_histogram(d[np.isfinite(d)], out / "error_histogram.png", max_cm=20,
+                                  title="tip-to-target distance at each control step")]
+
+
+def _axes(ax) -> None:
+    ax.set_xlim(*LIMITS[0])
+    ax.set_ylim(*LIMITS[1])
+    ax.set_zlim(*LIMITS[2])
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_box_aspect((1.8, 1.8, 1.1))
+
+
+def draw(ax, points: np.ndarray, target: np.ndarray, trail: np.ndarray | None = None) -> None:
+    """The backbone ``points`` (k, 3), the target and its recent ``trail`` on 3D axes."""
+    ax.plot(*points.T, color="tab:blue", lw=4)
+    ax.plot(*points[:, :2].T, np.zeros(len(points)), color="0.7", lw=2)  # shadow on the floor
+    if trail is not None:
+        ax.plot(*trail.T, color="tab:red", lw=1, alpha=0.6)
+    ax.scatter(*target, color="tab:red", s=40)
+    _axes(ax)
+
+
+def render(robot: Robot, q, target) -> np.ndarray:
+    """An RGB frame of the arm and the target."""
+    points = np.asarray(backbone(robot, q))
+    return plots.rgb_image(lambda ax: draw(ax, points, np.asarray(target)), projection="3d")
+
+
+def episode_gif(path, robot: Robot, q: np.ndarray, target: np.ndarray, distance: np.ndarray, dt: float,
+                fps: int, dpi: int) -> Path:
+    """A GIF of an episode: q (T + 1, n) and target (T + 1, 3) at each control step."""
+    import jax
+
+    shapes = np.asarray(jax.jit(jax.vmap(lambda x: backbone(robot, x)))(q))
+    fig = plt.figure(figsize=(5, 5))
+    ax = fig.add_subplot(projection="3d")
+
+    def frame(k):
+        ax.clear()
+        draw(ax, shapes[k], target[k], target[max(0, k - 20):k + 1])
+        text = f"t = {k * dt:.1f} s" + (f", distance {100 * distance[k - 1]:.1f} cm" if k else "")
+        ax.set_title(text)
+
+    return plots.save_gif(fig, frame, len(q), path, fps=fps, dpi=dpi)

@@ -1,0 +1,20 @@
+"""track3d's parameters: the arm, the target's motion, the reward and observation scales."""
+
+from __future__ import annotations
+
+from flax import struct
+
+from gvsjax.tasks.arm3d import ArmParams
+
+
+@struct.dataclass
+class Track3DParams:
+    """Task parameters (SI units; the arm's base at the origin, standing along +z)."""
+
+    arm: ArmParams = struct.field(default_factory=ArmParams)
+    box_low: tuple = (-0.6, -0.6, 0.3)  # m, the target stays in this box
+    box_high: tuple = (0.6, 0.6, 0.9)  # m
+    speed: float = 0.5  # m/s, the target's constant speed
+    turn_probability: float = 0.025  # per control step: a new random direction
+    k: float = 10.0  # 1/m, reward exp(-k d) per step (0.61 at 5 cm, 0.37 at 10 cm)
+    episode_steps: int = struct.field(pytree_node=False, default=100)  # control steps (10 s)

@@ -1,0 +1,159 @@
+"""The upright 3D tendon arm (gv.soft_arm) against closed forms, and the track3d task: the
+target's motion, the action mapping, the env under jit/vmap, bad input, the figures."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import capture_figures, finite_line
+
+import gvsjax as gv
+from gvsjax.tasks import arm3d, make
+from gvsjax.tasks import track3d as t3
+
+TRUNCATION_M = 5e-3  # the order-2 basis' tip error on a curvature jump (experiments/track3d_basis.py)
+
+
+@pytest.fixture(scope="module")
+def env():
+    return make("track3d")
+
+
+def test_a_tendon_bends_the_arm_into_the_closed_form_arc():
+    """Weightless, one tendon at offset d pulled with T: the Cosserat balance gives a constant
+    curvature T d / EI and a uniform compression -T / EA, so the tip lies on a circular arc of
+    reference length L shrunk by (1 - T / EA), bent towards the tendon (world +x at rest)."""
+    E, r, d, T = 1e7, 0.05, 0.04, 600.0
+    robot = gv.soft_arm(gravity=0.0)
+    A, I = math.pi * r**2, math.pi * r**4 / 4
+    eq = gv.equilibrium(robot, tendon_force=jnp.array([T, 0, 0, 0, 0, 0, 0, 0.0]))
+    assert bool(eq.converged)
+    kappa, scale = T * d / (E * I), 1 - T / (E * A)
+    expected = scale * np.array([(1 - math.cos(kappa)) / kappa, 0.0, math.sin(kappa) / kappa])
+    np.testing.assert_allclose(np.asarray(gv.backbone(robot, eq.q)[-1]), expected, atol=1e-9)
+
+
+def test_the_half_length_tendons_bend_only_the_lower_half():
+    """Weightless, a lower-group tendon: an arc of curvature T d / EI up to X = 1/2 (shrunk by
+    1 - T / EA), then a straight upper half along the arc's end tangent. The polynomial basis
+    smooths the curvature's jump at X = 1/2: the convergence study (experiments/track3d_basis.py)
+    puts the order-2 basis within a few millimetres of the reference there."""
+    E, r, d, T = 1e7, 0.05, 0.04, 400.0
+    robot = gv.soft_arm(gravity=0.0)
+    A, I = math.pi * r**2, math.pi * r**4 / 4
+    eq = gv.equilibrium(robot, tendon_force=jnp.array([0, 0, 0, 0, 0, T, 0, 0]))  # lower group, +z
+    kappa, scale = T * d / (E * I), 1 - T / (E * A)
+    phi = kappa * 0.5
+    expected = np.array([0.0, scale * (1 - math.cos(phi)) / kappa + 0.5 * math.sin(phi),
+                         scale * math.sin(phi) / kappa + 0.5 * math.cos(phi)])
+    tip = np.asarray(gv.backbone(robot, eq.q)[-1])
+    assert abs(tip[0]) < 1e-12  # the bend stays in the y-z plane
+    np.testing.assert_allclose(tip, expected, atol=TRUNCATION_M)
+
+
+def test_first_bending_frequency_matches_euler_bernoulli():
+    """Weightless cantilever: omega_1 = 1.8751^2 sqrt(EI / (rho A L^4)), in both bending planes."""
+    robot = gv.soft_arm(gravity=0.0)
+    q = jnp.zeros(robot.n_dofs)
+    M = np.asarray(gv.mass_and_forces(robot, q, q)[0])  # its lower triangle
+    M = M + np.tril(M, -1).T
+    K = np.asarray(gv.stiffness_and_damping(robot)[0])
+    w = np.sort(np.sqrt(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+    E, r, rho = 1e7, 0.05, 1000.0
+    w1 = 1.8751**2 * math.sqrt(E * math.pi * r**4 / 4 / (rho * math.pi * r**2))
+    np.testing.assert_allclose(w[:2], [w1, w1], rtol=2e-3)  # a Ritz bound from above (three curvature modes)
+
+
+def test_target_moves_at_its_speed_inside_the_box():
+    P = t3.Track3DParams()
+    low, high = np.array(P.box_low), np.array(P.box_high)
+
+    def walk(key):
+        p, v = t3.start(key, P)
+
+        def body(carry, k):
+            p, v = t3.move(k, *carry, P)
+            return (p, v), (p, v)
+
+        return jax.lax.scan(body, (p, v), jax.random.split(jax.random.fold_in(key, 1), 400))[1]
+
+    p, v = jax.jit(jax.vmap(walk))(jax.random.split(jax.random.PRNGKey(0), 64))
+    p, v = np.asarray(p), np.asarray(v)
+    assert np.all(p >= low - 1e-12) and np.all(p <= high + 1e-12)
+    np.testing.assert_allclose(np.linalg.norm(v, axis=-1), P.speed, rtol=1e-12)
+    step = np.linalg.norm(np.diff(p, axis=1), axis=-1)
+    assert step.max() <= P.speed * P.arm.control_dt + 1e-12  # a reflection only shortens a step
+    turned = np.any(np.abs(np.diff(v, axis=1)) > 1e-9, axis=-1)
+    # direction changes: turns (2.5% per step) and wall bounces; the box is crossed in ~2.4 s
+    assert 0.05 < turned.mean() < 0.3
+    assert p.std(axis=(0, 1)).min() > 0.25 * (high - low).min() / math.sqrt(12)
+
+
+def test_actions_map_to_opposing_nonnegative_tensions():
+    arm = arm3d.ArmParams()
+    a = jnp.array([[1.0, -0.5, 0.0, 2.0], [-1.0, 0.25, -3.0, 0.0]])
+    T = np.asarray(arm3d.tensions(a, arm)) / arm.tension_max
+    np.testing.assert_allclose(T, [[1, 0, 0, 0.5, 0, 1, 0, 0], [0, 0.25, 1, 0, 0, 0, 1, 0]], atol=1e-15)
+    assert np.all(T >= 0)
+
+
+@pytest.mark.slow
+def test_env_under_jit_and_vmap(env):
+    P = env.default_params()
+    keys = jax.random.split(jax.random.PRNGKey(1), 3)
+    obs, s = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, P)
+    assert obs.shape == (3, env.obs_size) and np.all(np.asarray(obs[:, -1]) == 1.0)
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    actions = jnp.array([[1.0, 0, 0, 0], [0, 0, 0, 0], [jnp.nan, 0, 0, 0]])
+    tips = []
+    for t in range(3):
+        obs, s, reward, done, info = step(jax.random.split(jax.random.PRNGKey(t), 3), s, actions, P)
+        tips.append(np.asarray(s.tip))
+    valid = np.asarray(info["valid"])
+    assert valid.tolist() == [True, True, False]  # a NaN action is flagged, the batch runs on
+    r = np.asarray(reward)
+    d = np.asarray(info["distance"])
+    np.testing.assert_allclose(r[:2], np.exp(-P.k * d[:2]), rtol=1e-12)
+    assert np.all((r[:2] > 0) & (r[:2] <= 1)) and r[2] == 0
+    # pulling the whole-arm +y tendon (section y = world +x) moves the tip towards +x; with no action
+    # the arm stands, settling under its weight (rho g L^2 / 2E = 0.5 mm)
+    assert tips[-1][0, 0] > tips[0][0, 0] > 0.05
+    np.testing.assert_allclose(tips[-1][1], [0, 0, 1], atol=1e-3)
+    np.testing.assert_allclose(np.asarray(obs[:2, -1]), 1 - 3 / env.episode_length)
+    assert env.observation_space().shape == (env.obs_size,)
+
+
+def test_wrong_arm_or_action_shape_is_refused_before_compiling(env):
+    P = env.default_params()
+    bad = P.replace(arm=P.arm.replace(robot=gv.soft_arm(tendon_ends=(1.0,))))
+    with pytest.raises(ValueError, match="two tendon groups"):
+        env.reset(jax.random.PRNGKey(0), bad)
+    _, s = env.reset(jax.random.PRNGKey(0), P)
+    with pytest.raises(ValueError, match=r"expected \(4,\)"):
+        env.step(jax.random.PRNGKey(0), s, jnp.zeros(3), P)
+    with pytest.raises(ValueError, match="tendon_ends"):
+        gv.soft_arm(tendon_ends=(1.5,))
+    with pytest.raises(ValueError, match="tendon_offset"):
+        gv.soft_arm(tendon_offset=0.06)
+
+
+def test_evaluation_figures_draw_the_curves(tmp_path, monkeypatch):
+    from gvsjax.tasks.track3d.figures import evaluation_figures
+
+    rng = np.random.default_rng(0)
+    target = rng.uniform(-0.5, 0.5, (4, 100, 3)) + [0, 0, 0.6]
+    extra = {"distance": rng.uniform(0, 0.2, (32, 100)), "rest_distance": rng.uniform(0.3, 0.8, (32, 100)),
+             "tip": target + 0.02, "target": target, "dt": 0.1}
+    figs = capture_figures(monkeypatch)
+    paths = evaluation_figures(extra, tmp_path)
+    assert [p.name for p in paths] == ["tracking_distance.png", "tracking_paths.png", "error_histogram.png"]
+    median = finite_line(figs["tracking_distance.png"], "policy, median", 100)
+    np.testing.assert_allclose(median["y"], 100 * np.median(extra["distance"], 0))
+    finite_line(figs["tracking_distance.png"], "arm left at rest, median", 100)
+    for i in range(4):
+        finite_line(figs["tracking_paths.png"], f"episode {i + 1}", 100)
+    assert len(figs["tracking_paths.png"]) == 8  # a tip and a target path per episode
+    bars = [ln for ln in figs["error_histogram.png"] if ln["label"] == "bars"][0]
+    assert abs(bars["y"].sum() - 100) < 1e-9
