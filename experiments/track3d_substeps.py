@@ -1,9 +1,12 @@
 """How many integrator steps the 3D tasks need per 0.1 s control step, and the cost of one.
 
-Episodes of ``track3d`` with random actions (each held for a control step, as a
-policy acts) are run with ``n_substeps`` ars443 steps per control step and with
-a reference of ``--reference`` steps; the table gives the largest tip distance
-from the reference over the episodes and the env steps per second of a batch.
+Episodes of ``track3d`` are run with ``n_substeps`` ars443 steps per control
+step and with a reference of ``--reference`` steps, under two kinds of actions:
+"random" (uniform in [-1, 1], a new one every control step: an untrained
+policy's jerks, the hardest case) and "held" (uniform, each held for 1 s). The
+table gives the largest and 95th-percentile tip distance from the reference
+over all steps of the episodes (a diverged episode counts as infinite) and the
+env steps per second of a batch.
 
     python experiments/track3d_substeps.py              # ~5 min on 2 cores
 """
@@ -46,17 +49,25 @@ def main() -> None:
     ap.add_argument("--reference", type=int, default=64)
     ap.add_argument("--episodes", type=int, default=64)
     ap.add_argument("--batch", type=int, default=1024, help="batch of the timing")
+    ap.add_argument("--tension-max", type=float, default=0.0, help="N (default: the task's)")
+    ap.add_argument("--sim-dtype", default="float64", help="of the runs compared with the float64 reference")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "track3d_substeps.json"))
     args = ap.parse_args()
     env = make("track3d")
     arm = env.default_params().arm
-    actions = jax.random.uniform(jax.random.PRNGKey(0), (args.episodes, env.episode_length, env.action_size),
-                                 minval=-1, maxval=1)
-    ref = np.asarray(jax.jit(tips, static_argnums=())(dataclasses.replace(arm, n_substeps=args.reference), actions))
+    if args.tension_max:
+        arm = dataclasses.replace(arm, tension_max=args.tension_max)
+    shape = (args.episodes, env.episode_length, env.action_size)
+    random = jax.random.uniform(jax.random.PRNGKey(0), shape, minval=-1, maxval=1)
+    held = jnp.repeat(random[:, ::10], 10, axis=1)
+    families = {"random": random, "held": held}
+    ref = {k: np.asarray(jax.jit(tips)(dataclasses.replace(arm, n_substeps=args.reference), a))
+           for k, a in families.items()}
     rows = []
     for n in [int(s) for s in args.substeps.split(",")]:
-        a = dataclasses.replace(arm, n_substeps=n)
-        err = np.linalg.norm(np.asarray(jax.jit(tips)(a, actions)) - ref, axis=-1)
+        a = dataclasses.replace(arm, n_substeps=n, sim_dtype=args.sim_dtype)
+        err = {k: np.nan_to_num(np.linalg.norm(np.asarray(jax.jit(tips)(a, acts)) - ref[k], axis=-1), nan=np.inf)
+               for k, acts in families.items()}
         step = jax.jit(jax.vmap(lambda q, qd, T, a=a: arm3d.advance(a, q, qd, T).q[-1]))
         q = jnp.zeros((args.batch, arm.robot.n_dofs))
         T = jnp.full((args.batch, len(arm.robot.tendons)), 500.0)
@@ -68,17 +79,21 @@ def main() -> None:
             t0 = time.perf_counter()
             jax.block_until_ready(step(q, q, T))
             runs.append(time.perf_counter() - t0)
-        rows.append({"n_substeps": n, "max_tip_error_m": float(err.max()),
-                     "p95_tip_error_m": float(np.percentile(err, 95)),
+        rows.append({"n_substeps": n, **{f"{k}_max_tip_error_m": float(e.max()) for k, e in err.items()},
+                     **{f"{k}_p95_tip_error_m": float(np.percentile(e, 95)) for k, e in err.items()},
                      "compile_s": compile_s, "env_steps_per_s": args.batch / float(np.median(runs))})
         print(rows[-1], flush=True)
     Path(args.json).write_text(json.dumps({"reference_substeps": args.reference, "episodes": args.episodes,
-                                           "batch": args.batch, "rows": rows}, indent=1))
-    print(f"\n| ars443 steps per 0.1 s | max tip error | p95 | env steps/s (batch {args.batch}) |")
+                                           "tension_max_N": float(arm.tension_max), "batch": args.batch,
+                                           "sim_dtype": args.sim_dtype,
+                                           "rows": rows}, indent=1))
+    print(f"\n| ars443 steps per 0.1 s | random actions: max / p95 tip error | held actions: max / p95 | "
+          f"env steps/s (batch {args.batch}) |")
     print("|---|---|---|---|")
+    mm = lambda x: f"{1e3 * x:.1f} mm"  # noqa: E731
     for r in rows:
-        print(f"| {r['n_substeps']} | {1e3 * r['max_tip_error_m']:.2f} mm | {1e3 * r['p95_tip_error_m']:.2f} mm | "
-              f"{r['env_steps_per_s']:.0f} |")
+        print(f"| {r['n_substeps']} | {mm(r['random_max_tip_error_m'])} / {mm(r['random_p95_tip_error_m'])} | "
+              f"{mm(r['held_max_tip_error_m'])} / {mm(r['held_p95_tip_error_m'])} | {r['env_steps_per_s']:.0f} |")
 
 
 if __name__ == "__main__":

@@ -218,9 +218,10 @@ SOFT_ARM = dict(
     gravity=9.81,  # m/s^2, along world -z (the arm stands along +z)
     bending_order=2,  # Legendre order of both bending curvatures
     torsion_order=0,  # -1: no torsion
-    stretch_order=0,  # -1: inextensible
+    stretch_order=1,  # -1: inextensible (the lower tendons compress only the lower half: order 1)
     shear_order=-1,  # -1: unshearable (Kirchhoff); 0 or more: both shears
     n_gauss=4,
+    recursion="scan",  # see SoftLink.recursion: here the scan compiles ~7x and runs ~1.3x faster
     tendon_offset=0.04,  # m from the midline
     tendon_ends=(1.0, 0.5),  # X where each group of four tendons is anchored (from the base)
 )
@@ -249,6 +250,8 @@ def soft_arm(**overrides: Any) -> Robot:
         positive(key, p[key])
     for key in ("damping", "gravity"):
         nonnegative(key, p[key])
+    require(p["recursion"] in ("unrolled", "scan", "auto"), "recursion", p["recursion"],
+            "'unrolled', 'scan' or 'auto'")
     for key in ("torsion_order", "stretch_order", "shear_order"):
         require(isinstance(p[key], int) and not isinstance(p[key], bool) and p[key] >= -1, key, p[key],
                 "an int >= -1 (-1 = inactive)")
@@ -277,7 +280,7 @@ def soft_arm(**overrides: Any) -> Robot:
                     material=Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"]),
                     basis=StrainBasis(orders=(p["torsion_order"], p["bending_order"], p["bending_order"],
                                               p["stretch_order"], shear, shear), kind="legendre"),
-                    joint=Joint("fixed"), n_gauss=p["n_gauss"])
+                    joint=Joint("fixed"), n_gauss=p["n_gauss"], recursion=p["recursion"])
     robot = Robot(links=(link,), gravity=p["gravity"], gravity_direction=(0.0, 0.0, -1.0),
                   tendons=tuple(tendons), base_rotation=UPRIGHT)
     check_robot(robot)

@@ -8,7 +8,7 @@ for 10 s (100 steps) through its two tendon groups (``gvsjax.tasks.arm3d``).
 Parts of the box lie beyond a 1 m arm's reach (its upper corners are 1.2 m from
 the base), so no policy follows the target everywhere.
 
-Observation (32,) for the default arm: the tip's position (m) and velocity (m/s),
+Observation (34,) for the default arm: the tip's position (m) and velocity (m/s),
 the strain coordinates and rates (scaled, ``arm3d.arm_features``), the target's
 position (m) and velocity / speed, the target minus the tip (m), and the
 fraction of the episode left. Reward per step exp(-k d) in (0, 1], d the
@@ -18,6 +18,7 @@ out-of-bound state ends the episode with ``info["valid"] = False`` and reward 0.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -67,16 +68,16 @@ class Track3D(Environment):
     """Closed-loop tracking of a moving 3D target."""
 
     name = "track3d"
-    obs_size = 32  # 6 + 2 x 8 strain coordinates + 10
+    obs_size = 34  # 6 + 2 x 9 strain coordinates + 10
     action_size = 4
     episode_length = 100
     rows_file = "eval_episodes.csv"
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     ppo_defaults = dict(
         network="separate", actor_hidden=(256, 256), critic_hidden=(256, 256), activation="tanh",
-        num_envs=256, num_steps=25, num_minibatches=8, update_epochs=4, gamma=0.98, gae_lambda=0.95,
+        num_envs=512, num_steps=20, num_minibatches=8, update_epochs=4, gamma=0.98, gae_lambda=0.95,
         learning_rate=3e-4, clip_eps=0.2, ent_coef=0.0, init_log_std=-0.5, anneal_lr=True,
-        finetune_fraction=0.0, max_grad_norm=0.5, total_episodes=40_000,
+        finetune_fraction=0.0, max_grad_norm=0.5, total_episodes=28_000,
     )
 
     def default_params(self) -> Track3DParams:
@@ -90,6 +91,9 @@ class Track3D(Environment):
             raise ValueError(f"track3d's arm has two tendon groups and {(self.obs_size - 16) // 2} strain "
                              f"coordinates (got {len(robot.tendons)} tendons, {robot.n_dofs} coordinates) and "
                              f"episode_steps={self.episode_length} (got {params.episode_steps})")
+
+    def with_sim_dtype(self, params: Track3DParams, sim_dtype: str) -> Track3DParams:
+        return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))
 
     def observation_space(self, params=None) -> Box:
         low = np.full(self.obs_size, -np.inf)
