@@ -63,7 +63,7 @@ def _geometry(link: SoftLink, scale) -> tuple[tuple, tuple]:
     return (iy + iz, iy, iz, area, area, area), (jt, iy, iz, area, area, area)
 
 
-def section(link: SoftLink, X: float = 0.0) -> Section:
+def section(link: SoftLink, X: Any = 0.0) -> Section:
     """The section's diagonals at material coordinate X (the base's when untapered)."""
     scale = 1.0 if _uniform(link) else 1.0 + (link.taper - 1.0) * X
     geo_m, geo_k = _geometry(link, scale)
@@ -223,7 +223,9 @@ def mass_and_forces(
     for pt in points:
         link = robot.links[pt.link]
         if pt.rows:
-            _add_stacked_body(M, F, pt, section(link, pt.X).inertia, g_world)
+            # a stacked point's X is a numpy array over its rows: in float64 it would lift a float32 run
+            X = jnp.asarray(pt.X, lie.as_array(pt.weight).dtype)
+            _add_stacked_body(M, F, pt, section(link, X).inertia, g_world)
         elif pt.kind == "soft" and not lie.is_zero(pt.weight):
             _add_body(M, F, pt, section(link, pt.X).inertia, pt.weight, g_world)
         elif pt.kind == "rigid":
@@ -310,7 +312,7 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     for pt in points:
         link = robot.links[pt.link]
         if pt.rows:
-            body(pt, section(link, pt.X).inertia, pt.weight)
+            body(pt, section(link, jnp.asarray(pt.X, lie.as_array(pt.weight).dtype)).inertia, pt.weight)
         elif pt.kind == "soft" and not lie.is_zero(pt.weight):
             body(pt, section(link, pt.X).inertia, pt.weight)
         elif pt.kind == "rigid":

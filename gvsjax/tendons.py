@@ -79,10 +79,11 @@ def _routed(link: SoftLink, path: TendonPath, q, T, slc, tau) -> None:
     _, s0, end = slc
     nodes, weights = np.polynomial.legendre.leggauss(path.n_quad)
     inv_L = 1.0 / link.length
+    dtype = jnp.result_type(*(lie.as_array(x) for x in q[s0:end]))  # float32 stays float32
     for piece, (a, b) in enumerate(path.pieces):
         for x01, w01 in zip((nodes + 1) / 2, weights / 2):
             X = a + (b - a) * float(x01)
-            d_yz, dd_yz = _offset(path, piece, X)
+            d_yz, dd_yz = _offset(path, piece, X, dtype)
             d = (0, d_yz[0], d_yz[1])
             dd = (0, mul(dd_yz[0], inv_L), mul(dd_yz[1], inv_L))  # d/dX -> d/ds
             cols = scaled_columns(link.basis.raw(X), inv_L)
@@ -91,13 +92,13 @@ def _routed(link: SoftLink, path: TendonPath, q, T, slc, tau) -> None:
             _accumulate(tau, cols, s0, coef, d, dd, xi)
 
 
-def _offset(path: TendonPath, piece: int, X: float) -> tuple[tuple, tuple]:
-    """d(X) = (y, z) and dd/dX on ``piece`` (straight between knots, or the path function)."""
+def _offset(path: TendonPath, piece: int, X: float, dtype) -> tuple[tuple, tuple]:
+    """d(X) = (y, z) and dd/dX on ``piece`` (straight between knots, or the path function), in ``dtype``."""
     if path.path is not None:
-        d, dd = jax.jvp(lambda x: jnp.reshape(jnp.asarray(path.path(x)), (2,)),
-                        (jnp.asarray(X, jnp.float64),), (jnp.asarray(1.0, jnp.float64),))
+        d, dd = jax.jvp(lambda x: jnp.reshape(jnp.asarray(path.path(x)), (2,)).astype(dtype),
+                        (jnp.asarray(X, dtype),), (jnp.asarray(1.0, dtype),))
         return (d[0], d[1]), (dd[0], dd[1])
-    off = jnp.asarray(path.offsets)
+    off = jnp.asarray(path.offsets).astype(dtype)
     a, b = path.knots[piece], path.knots[piece + 1]
     lo, hi = off[piece], off[piece + 1]
     slope = (hi - lo) / (b - a)
@@ -119,7 +120,7 @@ def cable_length(robot: Robot, tendon: RoutedTendon, q: jax.Array) -> jax.Array:
         for piece, (a, b) in enumerate(path.pieces):
             for x01, w01 in zip((nodes + 1) / 2, weights / 2):
                 X = a + (b - a) * float(x01)
-                d_yz, dd_yz = _offset(path, piece, X)
+                d_yz, dd_yz = _offset(path, piece, X, total.dtype)
                 cols = scaled_columns(link.basis.raw(X), inv_L)
                 xi = strain(cols, [q[i] for i in range(s0, end)], rest_strain(link, X))
                 w = jnp.stack([lie.as_array(c) for c in xi[:3]])

@@ -157,3 +157,22 @@ def test_evaluation_figures_draw_the_curves(tmp_path, monkeypatch):
     assert len(figs["tracking_paths.png"]) == 8  # a tip and a target path per episode
     bars = [ln for ln in figs["error_histogram.png"] if ln["label"] == "bars"][0]
     assert abs(bars["y"].sum() - 100) < 1e-9
+
+
+def test_the_tendon_arm_simulates_in_float32():
+    """Routed tendons and the folded ars443 layout (>= 4 free DoFs) keep float32 throughout."""
+    robot = gv.soft_arm(torsion_order=-1, bending_order=1, stretch_order=0)  # 5 DoFs
+    arm32 = arm3d.ArmParams(robot=robot, sim_dtype="float32")
+    arm64 = arm3d.ArmParams(robot=robot)
+    q, qd = arm3d.rest(robot)
+    tension = arm3d.tensions(jnp.array([0.5, -0.3, 0.2, 0.4]), arm64)
+    simulate32 = jax.jit(lambda q, qd, T: gv.simulate(robot, 0.1, n_steps=8, tendon_force=T, q0=q, qd0=qd,
+                                                      integrator="ars443", dtype=jnp.float32,
+                                                      check_stability=False))
+    assert simulate32(q, qd, tension).q.dtype == jnp.float32
+    tip32 = arm3d.advance(arm32, q, qd, tension).tip[-1]
+    tip64 = arm3d.advance(arm64, q, qd, tension).tip[-1]
+    assert tip32.dtype == jnp.float64  # the env's state stays float64
+    np.testing.assert_allclose(np.asarray(tip32), np.asarray(tip64), atol=1e-4)
+    with pytest.raises(ValueError, match="sim_dtype"):
+        arm3d.with_sim_dtype(arm64, "float16")

@@ -91,6 +91,8 @@ class Environment:
     rows_file: ClassVar[str] = "eval_episodes.csv"  # per-episode evaluation table
     # CLI keys of ``animate`` with their defaults (empty: the task has no animation)
     animation_keys: ClassVar[Mapping[str, Any]] = {}
+    # True: ``animate`` takes ``policy=`` (closed-loop tasks; the CLI's ``checkpoint=`` key loads one)
+    animates_policy: ClassVar[bool] = False
 
     # ------------------------------------------------------------------ the functional API
 
@@ -168,7 +170,8 @@ class Environment:
         return None
 
     def animate(self, path: Path, **keys: Any) -> Path:
-        """Write a GIF to ``path`` from the ``animation_keys`` values."""
+        """Write a GIF to ``path`` from the ``animation_keys`` values (and ``policy=`` when
+        ``animates_policy``)."""
         raise ValueError(f"task={self.name!r} has no animation")
 
 

@@ -73,6 +73,7 @@ class Track3D(Environment):
     episode_length = 100
     rows_file = "eval_episodes.csv"
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
+    animates_policy = True
     ppo_defaults = dict(
         network="separate", actor_hidden=(256, 256), critic_hidden=(256, 256), activation="tanh",
         num_envs=512, num_steps=20, num_minibatches=8, update_epochs=4, gamma=0.98, gae_lambda=0.95,
