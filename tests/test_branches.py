@@ -85,6 +85,7 @@ def _mf(robot, q, qd):
     return dynamics.full_matrix(M, n), jnp.stack([lie.as_array(f) for f in F])
 
 
+@pytest.mark.extended
 def test_branches_share_no_inertia_and_the_lagrangian_holds():
     """M between the two branches is exactly zero (they share no body), between the trunk
     and a branch it is not; M and F equal the Lagrangian's by autodiff on the tree."""

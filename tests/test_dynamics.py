@@ -35,7 +35,7 @@ ROBOTS = {
 }
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.extended) if n == "rigid_soft" else n
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.extended) if n in ("rigid_soft", "rod_3d") else n
                                   for n in sorted(ROBOTS)])
 def test_recursion_equals_lagrangian_autodiff(name):
     """M and F from the recursion equal those of the discrete Lagrangian,

@@ -175,6 +175,7 @@ def test_non_finite_action_is_replaced_by_the_centre_and_flagged(env_and_params,
     assert np.all(np.isfinite(obs)) and np.all(np.isfinite(state.q))
 
 
+@pytest.mark.extended
 def test_blow_up_is_flagged_even_while_finite():
     # 300 RK4 steps per 5 s step: dt = 16.7 ms, above the 13.9 ms stability limit; the
     # integration grows without reaching inf, so only the magnitude bound can catch it

@@ -184,6 +184,7 @@ def _fuzz(p, action, duration):
     return traj, d_tip, d_energy, d_params
 
 
+@pytest.mark.extended
 @settings(max_examples=20, deadline=None)
 @given(p=st.fixed_dictionaries({k: st.floats(*r) for k, r in PHYS.items()}),
        action=st.tuples(st.floats(-1, 1), st.floats(-1, 1)))
