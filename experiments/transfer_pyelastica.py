@@ -352,6 +352,14 @@ def plot(res: dict, out: str) -> None:
                            ((r["ss"], r["pyelastica"]), "k", "the rest: gvsjax (+ stretch, shear) vs PyElastica")):
         if a in P and b in P:
             dx.plot(T, 1e3 * np.linalg.norm(P[a] - P[b], axis=1), ".", ms=3, color=c, label=lab)
+    pe = models[r["pyelastica"]].get("vs_elements")
+    if pe:
+        chk, p_fine = np.array(pe["throws"]), np.array(pe["p0"])
+        n_el = pe["n_elements"]
+        dx.plot(T[chk], 1e3 * np.linalg.norm(P[r["ss"]][chk] - p_fine, axis=1), "x", ms=7, mew=1.5, color="C3",
+                label=f"gvsjax (+ stretch, shear) vs PyElastica {n_el} elements")
+        dx.plot(T[chk], 1e3 * np.linalg.norm(P[r["pyelastica"]][chk] - p_fine, axis=1), "+", ms=8, mew=1.5,
+                color="k", label=f"PyElastica {r['pyelastica'].split()[1]} vs {n_el} elements")
     dx.set_yscale("log")
     dx.set_xlabel("swing time T (s)")
     dx.set_ylabel("release position difference (mm)")
@@ -361,6 +369,25 @@ def plot(res: dict, out: str) -> None:
     os.makedirs(os.path.dirname(out), exist_ok=True)
     fig.savefig(out, dpi=120)
     plt.close(fig)
+
+
+def vs_fine_pyelastica(res: dict) -> list[dict]:
+    """Every model's release against PyElastica with ``--check-elements`` elements (at dt/2), on the
+    throws of that check: which model the finer discretisation moves towards."""
+    pe = res["models"][res["roles"]["pyelastica"]].get("vs_elements")
+    if not pe:
+        return []
+    chk, p_fine, m_fine = np.array(pe["throws"]), np.array(pe["p0"]), np.array(pe["miss"])
+    rows = []
+    for name, m in res["models"].items():
+        p = np.array(m["p0"])[chk]
+        d = np.linalg.norm(p - p_fine, axis=1)
+        u = p / np.linalg.norm(p, axis=1)[:, None]
+        along = (p - p_fine)[:, 0] * -u[:, 1] + (p - p_fine)[:, 1] * u[:, 0]  # along the swing (tangential)
+        rows.append(dict(model=name, tip_mm_median=1e3 * float(np.median(d)), tip_mm_max=1e3 * float(np.max(d)),
+                         along_swing_mm_median=1e3 * float(np.median(along)),
+                         miss_change_cm_median=1e2 * float(np.median(np.abs(np.array(m["miss"])[chk] - m_fine)))))
+    return rows
 
 
 def print_tables(res: dict) -> None:
@@ -382,6 +409,16 @@ def print_tables(res: dict) -> None:
     for r in res["decomposition"]:
         print(f"| {r['what']} | {r['a']} | {r['b']} | {r['tip_mm_median']:.2f} / {r['tip_mm_max']:.2f} | "
               f"{r['velocity_mm_s_median']:.1f} / {r['velocity_mm_s_max']:.1f} | {r['miss_change_cm_median']:.2f} |")
+    fine = vs_fine_pyelastica(res)
+    if fine:
+        pe = res["models"][res["roles"]["pyelastica"]]["vs_elements"]
+        print(f"\nAgainst PyElastica with {pe['n_elements']} elements (dt/2), on {pe['n_throws']} throws "
+              "(the fastest first)\n")
+        print("| model | release tip: median / max (mm) | along the swing, median (mm) | miss change, median (cm) |")
+        print("|---|---|---|---|")
+        for r in fine:
+            print(f"| {r['model']} | {r['tip_mm_median']:.2f} / {r['tip_mm_max']:.2f} | "
+                  f"{r['along_swing_mm_median']:.2f} | {r['miss_change_cm_median']:.2f} |")
 
 
 def main() -> None:
