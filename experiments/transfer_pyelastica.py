@@ -10,11 +10,12 @@ between the ballistic path and the target):
 * ``gvsjax 2 modes``: the task itself (``Basketball.step``), the model the policy was trained on;
 * ``gvsjax 2 modes, 8 Gauss``: the same basis with finer quadrature (quadrature error);
 * ``gvsjax K Legendre``: K Legendre bending modes (``paper_arm(n_modes=K, basis="legendre")``,
-  as ``contact_pyelastica.py`` builds them), bending only: the basis truncation;
+  as ``contact_pyelastica.py`` builds them), bending only: the basis truncation (K = ``--modes``,
+  checked against ``--fine-modes``);
 * ``gvsjax K Legendre + stretch/shear``: the same link with the in-plane stretch and shear
   strains active too (Legendre order ``--ss-order``), which PyElastica's rod has: the share
   of shear and stretch. gvsjax damps them with eta (3A, A) (SoRoSim's convention), PyElastica
-  leaves them undamped (``bench_pyelastica.py``);
+  leaves them undamped (``bench_pyelastica.py``), and a variant without their damping;
 * ``PyElastica``: ``bench_pyelastica.pyelastica_throw``: a 100-element shearable, extensible
   ``CosseratRod``, position Verlet at ``--dt``, the base prescribed, gravity, the ball's weight
   on the tip, Kelvin-Voigt bending/torsion damping with gvsjax's law.
@@ -23,11 +24,18 @@ The gvsjax variants run through ``Basketball.step`` with ``params.arm`` (and the
 replaced; every variant's release is checked against the same model at 4x the steps.
 PyElastica throws (~0.3-1.5 s each) are cached one by one in ``--cache`` (a rerun resumes;
 ``--workers N`` runs them in N spawned processes; keep 1 on a shared machine); the cached
-throws at ``--dt``/2 (``--check-dt``, the fastest throws first) bound PyElastica's time error.
+throws at ``--dt``/2 (``--check-dt``, the fastest throws first) bound PyElastica's time error,
+and the same throws with ``--check-elements`` elements its discretisation error. A model already in
+``--json`` for the same throws is not recomputed; ``--no-step-check`` skips the 4x-steps check of the
+others (it doubles their compile time).
 
     pip install pyelastica          # or pip install -e ".[bench]"
     python experiments/transfer_pyelastica.py --checkpoint runs/basketball-default [--n-targets 200]
     python experiments/transfer_pyelastica.py --replot
+
+(The committed JSON: a first run computed the task, 8 Gauss points, 6 Legendre and 6 Legendre +
+stretch/shear models with their 4x-steps checks and all PyElastica throws; a second, with
+``--no-step-check``, added the 8-mode and the undamped models and the 200-element check.)
 
 Writes benchmarks/transfer_pyelastica.json (summary), benchmarks/transfer_pyelastica_throws.json
 (the cache: one PyElastica release per target) and figures/transfer_pyelastica.png.
