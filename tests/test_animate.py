@@ -32,6 +32,7 @@ def test_throw_gif_from_the_cli(tmp_path, capsys):
     (["task=pickplace", "action=1,2,3"], "action="),  # 3 numbers, 4 needed
     (["task=pickplace", "action=0.5,1.5,0,0"], r"actions=[[0.5, 1.5], [0.0, 0.0]] must be (2, 2) numbers in [-1, 1]"),
     (["task=walk"], "task="),
+    (["checkpoint=/no/such/run"], "/no/such/run"),
     (["speed=3"], "valid keys"),
 ])
 def test_bad_input_is_named(argv, word, capsys, tmp_path):
@@ -46,3 +47,26 @@ def test_help_lists_each_tasks_keys(capsys):
     text = capsys.readouterr().out
     assert "task=basketball: T=2.0 delta=0.9" in text and "task=pickplace: action=0.5,0.6,-0.7,0.2" in text
 
+
+
+@pytest.mark.extended
+def test_a_checkpoints_policy_drives_a_closed_loop_gif(tmp_path, capsys):
+    """``checkpoint=`` loads the policy and the task from a run (here a freshly initialised one)."""
+    import dataclasses
+
+    import jax
+
+    from gvsjax.ppo import PPOConfig, checkpoint
+    from gvsjax.ppo.train import init
+    from gvsjax.tasks import make
+
+    env = make("track3d")
+    config = PPOConfig().replace(**{**env.ppo_defaults, "num_envs": 8, "num_steps": 4, "num_minibatches": 1})
+    state = init(config, env, env.default_params(), jax.random.PRNGKey(0))
+    path = tmp_path / "checkpoint.ckpt"
+    checkpoint.save(path, state, {"task": env.name, **dataclasses.asdict(config)}, env.name, 0)
+    out = tmp_path / "t3.gif"
+    assert animate.main([f"checkpoint={tmp_path}", "seed=2", "dpi=30", f"out={out}"]) == 0
+    assert _frames(out) == env.episode_length + 1
+    assert animate.main([f"checkpoint={path}", "task=basketball", f"out={out}"]) == 2
+    assert "checkpoint is for task='track3d'" in capsys.readouterr().err
