@@ -61,8 +61,8 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     ep = np.array([float(r["episodes"]) for r in rows])
     reward = np.array([float(r["episode_reward"]) for r in rows])
     count = np.maximum(np.array([float(r.get("episodes_completed", 1) or 1) for r in rows]), 1)
-    w = max(1, int(np.ceil(window_episodes / np.median(count))))  # rows covering the window
-    ok = np.isfinite(reward)
+    ok = np.isfinite(reward)  # rows where no episode ended (long episodes) have no reward
+    w = max(1, int(np.ceil(window_episodes / np.median(count[ok])))) if ok.any() else 1  # rows covering the window
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(ep[ok], reward[ok], lw=0.6, alpha=0.4, label="per update (mean over its episodes)")
     ax.plot(ep[ok], moving_average(reward[ok] * count[ok], w) / moving_average(count[ok], w),

@@ -176,3 +176,19 @@ def test_the_tendon_arm_simulates_in_float32():
     np.testing.assert_allclose(np.asarray(tip32), np.asarray(tip64), atol=1e-4)
     with pytest.raises(ValueError, match="sim_dtype"):
         arm3d.with_sim_dtype(arm64, "float16")
+
+
+def test_learning_curve_of_long_episodes_averages_the_recent_ones(tmp_path, monkeypatch):
+    """With 100-step episodes most updates end no episode (reward NaN): the 100-episode moving
+    average must span the last rows that ended some, not a hundred rows."""
+    from gvsjax import plots
+
+    rows = ["update,episodes,episode_reward,episodes_completed"]
+    for u in range(60):
+        done = u % 5 == 4
+        rows.append(f"{u},{102 * (u + 1)},{u if done else 'nan'},{512 if done else 0}")
+    (tmp_path / "metrics.csv").write_text("\n".join(rows) + "\n")
+    figs = capture_figures(monkeypatch)
+    plots.learning_curve(tmp_path / "metrics.csv", tmp_path / "curve.png")
+    avg = finite_line(figs["curve.png"], "100-episode moving average", 12)
+    np.testing.assert_allclose(avg["y"], np.arange(4, 60, 5))  # each row holds 512 >= 100 episodes
