@@ -1,9 +1,10 @@
 """gvsjax vs SoRoMoX (JAX PCS/GVS rods, the successor of JSRM) on the same rods, side by side.
 
-SoRoMoX (``pip install soromox``, MIT) requires ``jax>=0.10`` and brings diffrax, equinox, lineax
-and optimistix; it runs in its own process and virtual environment (``--peer-python``, default
-/work/venv-soromox/bin/python): this script starts itself there with ``--peer`` and the two sides
-exchange JSON. Neither side imports the other.
+SoRoMoX (``pip install soromox``, 0.5.0, MIT) requires ``jax>=0.10`` and brings diffrax, equinox,
+lineax and optimistix; its pins agree with gvsjax's (it is in the ``bench`` extra), but it runs in a
+process of its own, so that gvsjax's process-wide XLA flag does not touch it: this script starts
+itself with ``--peer`` under ``--peer-python`` (default /work/venv-soromox/bin/python if it exists,
+else this interpreter) and the two sides exchange JSON. Neither side imports the other.
 
 Workloads (all float64, t = 0..1 s from rest, straight, clamped at the origin along world +x,
 gravity 9.81 m/s^2 along world -y; radius 5 cm, E = 5 MPa, G = E/3 (Poisson 0.5), density
@@ -66,6 +67,7 @@ import json
 import math
 import os
 import subprocess
+import sys
 import tempfile
 import time
 
@@ -73,7 +75,9 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 JSON_PATH = os.path.join(ROOT, "benchmarks", "soromox.json")
-PEER_PYTHON = "/work/venv-soromox/bin/python"
+# SoRoMoX's own venv if there is one, else this interpreter (``pip install -e ".[bench]"`` installs it
+# beside gvsjax: the pins agree); either way it runs in a separate process
+PEER_PYTHON = "/work/venv-soromox/bin/python" if os.path.exists("/work/venv-soromox/bin/python") else sys.executable
 
 WORKLOADS = ("a", "b1", "b2", "b4", "c")
 DESCRIPTION = {
