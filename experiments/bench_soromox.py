@@ -259,18 +259,16 @@ def gvsjax_workload(w, batches, repeats, log) -> dict:
     def one_step_loop(qd0, ten, n):  # n traced: N_SAVE chunks of n / N_SAVE single steps
         dt = T_END / n
 
-        def step(_, state):
+        def step(_, state):  # (q, qd, tip) after one step
             tr = gv.simulate(robot, dt, n_steps=1, q0=state[0], qd0=state[1], integrator="ars443",
                              tendon_force=ten_of(ten), check_stability=False)
-            return tr.q[-1], tr.qd[-1]
+            return tr.q[-1], tr.qd[-1], tr.tip[-1]
 
         def chunk(state, _):
             state = jax.lax.fori_loop(0, n // N_SAVE, step, state)
-            tip = gv.simulate(robot, dt, n_steps=1, q0=state[0], qd0=state[1], integrator="ars443",
-                              tendon_force=ten_of(ten), check_stability=False).tip[0]
-            return state, tip
+            return state, state[2]
 
-        return jax.lax.scan(chunk, (jnp.asarray(q0), qd0), None, length=N_SAVE)[1]
+        return jax.lax.scan(chunk, (jnp.asarray(q0), qd0, jnp.zeros(3)), None, length=N_SAVE)[1]
 
     def make_search():
         if "search" not in cache:  # one compiled program for the search and the check below
