@@ -477,7 +477,8 @@ def draw(data: dict) -> None:
     axes[1].axhline(50, color="k", ls=":", lw=0.8, label="target, batch 1 (50x)")
     axes[1].set_ylabel("gvsjax / SoRoMoX")
     axes[1].legend(fontsize=7)
-    fig.suptitle(f"gvsjax (ars443) vs SoRoMoX (Tsit5), float64, 1 mm steps; machine: {data.get('machine')}",
+    fig.suptitle(f"gvsjax (ars443) vs SoRoMoX (Tsit5), float64, each at its largest step within 1 mm of its 10x run; "
+                 f"machine: {data.get('machine')}",
                  fontsize=9)
     fig.tight_layout()
     path = os.path.join(ROOT, "figures", "soromox.png")
