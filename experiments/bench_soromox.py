@@ -49,11 +49,17 @@ each batch is timed over a horizon h <= 1 s (at least 100 steps) for which one r
 time is scaled by 1 s / h (a constant step costs the same every step; ``timed_horizon_s`` in the
 JSON). gvsjax is always timed over the full second.
 
+Differences that remain (none changes the physics): in (a) gvsjax carries the held base angle as a
+prescribed coordinate (3 DoFs listed, 2 integrated) and SoRoMoX computes the planar arm with its
+spatial GVS kinematics; gvsjax saves the tip at step ends, SoRoMoX through diffrax's interpolation;
+SoRoMoX's rollout takes one step past the horizon; SoRoMoX's model without actuators still takes
+one (zero) input per strain. The converged tips agree to about a micrometre.
+
 XLA flags: gvsjax sets ``--xla_cpu_use_fusion_emitters=false`` on import (its own choice); the
 SoRoMoX process runs with JAX's defaults (``--peer-xla-flags`` to change that).
 
     python experiments/bench_soromox.py --quick                   # correctness pass (batch 1, 2 repeats)
-    python experiments/bench_soromox.py                           # everything (see docs/speed.md for times)
+    python experiments/bench_soromox.py                           # everything: an hour or more, idle (estimate)
     python experiments/bench_soromox.py --workloads a,b1 --batches 1,256 --libs soromox   # a part
     python experiments/bench_soromox.py --report                  # table and figure from the JSON
 
