@@ -123,6 +123,11 @@ def tensions(batch: int, seed: int = 0) -> np.ndarray:
     return np.random.default_rng(seed).uniform(0.0, TENSION_MAX, size=(batch, len(TENDON_DIRS)))
 
 
+def fmt(v: float) -> str:
+    """Simulated s per wall s: thousands separators, three significant digits below 10."""
+    return f"{v:,.1f}" if v >= 10 else f"{v:.3g}"
+
+
 def load_average() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
@@ -206,7 +211,7 @@ def measure(name: str, workload: str, make_batched, make_search, batches, repeat
         out["run_s"][str(b)] = scaled
         out["timed_horizon_s"][str(b)] = h
         out["sim_s_per_wall_s"][str(b)] = b * T_END / scaled
-        log(f"{name} {workload} batch {b}: {scaled:.4g} s per {T_END:g} s ({b * T_END / scaled:,.1f} sim s / wall s), "
+        log(f"{name} {workload} batch {b}: {scaled:.4g} s per {T_END:g} s ({fmt(b * T_END / scaled)} sim s / wall s), "
             f"compile {compile_s:.1f} s" + ("" if h == T_END else f" (timed over {h:g} s)"))
     out["load_end"] = load_average()
     return out
@@ -444,7 +449,7 @@ def report(data: dict, figure: bool) -> None:
                 continue
             for b in sorted(r["sim_s_per_wall_s"], key=int):
                 ratio = entry.get("ratio_sim_s_per_wall_s", {}).get(b) if lib == "gvsjax" else None
-                print(f"| {w} | {lib} | {r['n_dofs']} | {r['n_steps_per_s']} | {b} | {r['sim_s_per_wall_s'][b]:,.1f} | "
+                print(f"| {w} | {lib} | {r['n_dofs']} | {r['n_steps_per_s']} | {b} | {fmt(r['sim_s_per_wall_s'][b])} | "
                       f"{r['compile_s'][b]:.1f} | {'' if ratio is None else f'**{ratio:,.0f}x**'} |")
     print("\n| workload | tip difference gvsjax vs SoRoMoX, max over t (mm) | at t = 1 s (mm) |")
     print("|---|---|---|")
