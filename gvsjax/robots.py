@@ -265,6 +265,8 @@ def soft_arm(**overrides: Any) -> Robot:
     if concrete(p["radius"]):
         require(float(p["tendon_offset"]) < float(p["radius"]), "tendon_offset", p["tendon_offset"],
                 f"< radius={float(p['radius'])} m (the tendons run inside the rod)")
+    require(isinstance(p["tendon_ends"], (tuple, list)), "tendon_ends", p["tendon_ends"],
+            "a tuple of material points X in (0, 1]")
     ends = tuple(p["tendon_ends"])
     require(all(isinstance(e, (int, float)) and 0.0 < e <= 1.0 for e in ends), "tendon_ends",
             p["tendon_ends"], "material points X in (0, 1]")

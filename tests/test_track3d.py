@@ -133,8 +133,9 @@ def test_wrong_arm_or_action_shape_is_refused_before_compiling(env):
     _, s = env.reset(jax.random.PRNGKey(0), P)
     with pytest.raises(ValueError, match=r"expected \(4,\)"):
         env.step(jax.random.PRNGKey(0), s, jnp.zeros(3), P)
-    with pytest.raises(ValueError, match="tendon_ends"):
-        gv.soft_arm(tendon_ends=(1.5,))
+    for ends in ((1.5,), 0.5, (0.0,)):
+        with pytest.raises(ValueError, match="tendon_ends"):
+            gv.soft_arm(tendon_ends=ends)
     with pytest.raises(ValueError, match="tendon_offset"):
         gv.soft_arm(tendon_offset=0.06)
 
