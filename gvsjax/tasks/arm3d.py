@@ -36,7 +36,7 @@ class ArmParams:
     """The arm, its actuation and the control rate (SI units)."""
 
     robot: Robot = struct.field(default_factory=soft_arm)
-    tension_max: float = 2000.0  # N per tendon: bends the tip below the tasks' lowest targets
+    tension_max: float = 2000.0  # N per tendon: both groups together bend the tip below the tasks' targets
     control_dt: float = 0.1  # s between actions
     # ars443 steps per control step: 8 keep the tip within 6 mm (95th percentile) of a converged run under
     # actions held for 1 s, 16 within 1 mm (experiments/track3d_substeps.py)
