@@ -53,6 +53,7 @@ from gvsjax.kinematics import (  # noqa: E402
     jacobian_rates,
     jacobians,
     sample_sites,
+    tip_frame,
     tip_state,
 )
 from gvsjax.model import (  # noqa: E402
@@ -81,7 +82,7 @@ __all__ = [
     "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "rod_3d", "TENDON_ARM", "tendon_arm",
     "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
-    "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
+    "tip_frame", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics",
     "Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box",
 ]

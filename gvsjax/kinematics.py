@@ -209,6 +209,14 @@ def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax
     )
 
 
+def tip_frame(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """World rotation (3, 3) and position (3,) of the robot's last point; the rotation's first
+    column is the rod's tangent there (its axis, for a soft link)."""
+    pt = rows(forward(robot, _scalars(robot, q, "q"), [0] * robot.n_dofs, with_psi=False)[-1:])[-1]
+    R = jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R])
+    return R, jnp.stack([lie.as_array(a) for a in pt.p])
+
+
 def jacobians(robot: Robot, q: jax.Array) -> jax.Array:
     """Body-frame geometric Jacobians at every sample point, shape (n_points, 6, n)."""
     q_s = _scalars(robot, q, "q")

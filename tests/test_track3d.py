@@ -33,6 +33,11 @@ def test_a_tendon_bends_the_arm_into_the_closed_form_arc():
     kappa, scale = T * d / (E * I), 1 - T / (E * A)
     expected = scale * np.array([(1 - math.cos(kappa)) / kappa, 0.0, math.sin(kappa) / kappa])
     np.testing.assert_allclose(np.asarray(gv.backbone(robot, eq.q)[-1]), expected, atol=1e-9)
+    # the tip's tangent is turned by the arc's angle kappa towards the tendon (gv.tip_frame)
+    R, p = gv.tip_frame(robot, eq.q)
+    np.testing.assert_allclose(np.asarray(R[:, 0]), [math.sin(kappa), 0.0, math.cos(kappa)], atol=1e-9)
+    np.testing.assert_allclose(np.asarray(R.T @ R), np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(p), expected, atol=1e-9)
 
 
 def test_the_half_length_tendons_bend_only_the_lower_half():

@@ -10,8 +10,7 @@ import numpy as np
 from gvsjax import plots
 from gvsjax.kinematics import backbone
 from gvsjax.model import Robot
-
-LIMITS = ((-0.9, 0.9), (-0.9, 0.9), (0.0, 1.1))  # m, the drawn volume
+from gvsjax.tasks.draw3d import backbones, draw_arm, setup_axes
 
 
 def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path) -> Path:
@@ -44,7 +43,7 @@ def paths_3d(tip: np.ndarray, target: np.ndarray, path) -> Path:
         ax.plot(*target[i].T, color=color, ls="--", lw=1)
         ax.plot(*tip[i].T, color=color, lw=1.8, label=f"episode {i + 1}")
         ax.scatter(*target[i, 0], color=color, marker="o", s=20)
-    _axes(ax)
+    setup_axes(ax)
     ax.legend(loc="upper left", fontsize=8)
     ax.set_title("tip (solid) and target (dashed)")
     return plots.save(fig, path)
@@ -59,24 +58,13 @@ def evaluation_figures(extra: dict, out: Path) -> list[Path]:
                                   title="tip-to-target distance at each control step")]
 
 
-def _axes(ax) -> None:
-    ax.set_xlim(*LIMITS[0])
-    ax.set_ylim(*LIMITS[1])
-    ax.set_zlim(*LIMITS[2])
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.set_box_aspect((1.8, 1.8, 1.1))
-
-
 def draw(ax, points: np.ndarray, target: np.ndarray, trail: np.ndarray | None = None) -> None:
     """The backbone ``points`` (k, 3), the target and its recent ``trail`` on 3D axes."""
-    ax.plot(*points.T, color="tab:blue", lw=4)
-    ax.plot(*points[:, :2].T, np.zeros(len(points)), color="0.7", lw=2)  # shadow on the floor
+    draw_arm(ax, points)
     if trail is not None:
         ax.plot(*trail.T, color="tab:red", lw=1, alpha=0.6)
     ax.scatter(*target, color="tab:red", s=40)
-    _axes(ax)
+    setup_axes(ax)
 
 
 def render(robot: Robot, q, target) -> np.ndarray:
@@ -88,9 +76,7 @@ def render(robot: Robot, q, target) -> np.ndarray:
 def episode_gif(path, robot: Robot, q: np.ndarray, target: np.ndarray, distance: np.ndarray, dt: float,
                 fps: int, dpi: int) -> Path:
     """A GIF of an episode: q (T + 1, n) and target (T + 1, 3) at each control step."""
-    import jax
-
-    shapes = np.asarray(jax.jit(jax.vmap(lambda x: backbone(robot, x)))(q))
+    shapes = backbones(robot, q)
     fig = plt.figure(figsize=(5, 5))
     ax = fig.add_subplot(projection="3d")
 
