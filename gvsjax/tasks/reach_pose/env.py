@@ -13,7 +13,7 @@ its position (three coordinates) are.
 
 Observation (40,) for the default arm: ``arm3d.arm_features`` (24: tip position,
 velocity, scaled q and qd), the tip's tangent (3), the target position (3) and
-direction (3), target minus tip for both (6), and the fraction of the episode
+direction (3), target minus tip for both (6, x ``ERROR_GAIN``), and the fraction of the episode
 left. Reward per step (exp(-c) + exp(-precision c)) / 2 in (0, 1], with
 c = k_position d + k_angle theta (theta in rad). A
 non-finite or out-of-bound state ends the episode with ``info["valid"] = False``
@@ -39,6 +39,7 @@ from gvsjax.tasks.reach_pose.params import ReachPoseParams
 from gvsjax.tasks.reach_pose.poses import TRAIN_POSES, TRAIN_SEED, make_params
 
 SUCCESS = ((0.05, 10.0), (0.02, 5.0))  # (m, deg): the pose is reached when both errors are below these
+ERROR_GAIN = 5.0  # errors observed in units of 20 cm: the last centimetres stay visible to the policy
 
 
 @struct.dataclass
@@ -63,8 +64,8 @@ def observe(state: ReachPoseState, params: ReachPoseParams) -> jax.Array:
     """The observation of ``state`` (see the module docstring)."""
     left = 1.0 - state.step / params.episode_steps
     return jnp.concatenate([arm3d.arm_features(params.arm.robot, state.q, state.qd, state.tip, state.tip_velocity),
-                            state.tip_axis, state.target, state.target_axis, state.target - state.tip,
-                            state.target_axis - state.tip_axis, jnp.asarray(left, state.q.dtype)[None]])
+                            state.tip_axis, state.target, state.target_axis, ERROR_GAIN * (state.target - state.tip),
+                            ERROR_GAIN * (state.target_axis - state.tip_axis), jnp.asarray(left, state.q.dtype)[None]])
 
 
 def start(index: jax.Array, params: ReachPoseParams) -> ReachPoseState:
