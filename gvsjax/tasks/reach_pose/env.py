@@ -39,7 +39,7 @@ from gvsjax.tasks.reach_pose.params import ReachPoseParams
 from gvsjax.tasks.reach_pose.poses import TRAIN_POSES, TRAIN_SEED, make_params
 
 SUCCESS = ((0.05, 10.0), (0.02, 5.0))  # (m, deg): the pose is reached when both errors are below these
-ERROR_GAIN = 5.0  # errors observed in units of 20 cm: the last centimetres stay visible to the policy
+ERROR_GAIN = 10.0  # errors observed in units of 10 cm: the last centimetres stay visible to the policy
 
 
 @struct.dataclass
