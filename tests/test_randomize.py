@@ -19,6 +19,7 @@ from gvsjax import train
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.stability import linear_matrices
 from gvsjax.tasks import Environment, auto_reset_step, base, make, register
+from gvsjax.tasks.basketball import BALL_WEIGHT
 from gvsjax.tasks.randomized import Randomized, nominal, parse, text_of, wrap
 
 NOMINAL = gv.PAPER_ARM
@@ -254,3 +255,22 @@ def test_gymnasium_takes_the_option():
     assert terminated and abs(info["randomize_gain"] - 1) <= 0.3
     assert gg.GvsjaxEnv(task="gain_test").observation_space.shape == (1,)  # its own compiled functions
     raises_naming("'E'", gg.GvsjaxEnv, task="gain_test", randomize="E:0.1")
+
+
+@pytest.mark.extended
+def test_basketball_throws_on_the_drawn_model_equal_an_arm_built_with_it():
+    env = make("basketball")
+    wrapped = Randomized(env, parse("E:0.2,damping:0.2,payload:0.2", env))
+    params = env.default_params()
+    keys = jax.random.split(jax.random.PRNGKey(3), 4)
+    _, state = jax.vmap(wrapped.reset, in_axes=(0, None))(keys, params)
+    action = jnp.array([[-0.5, 0.2], [0.0, 0.0], [0.5, -0.3], [0.9, 0.9]])
+    _, _, reward, _, info = jax.jit(jax.vmap(wrapped.step, in_axes=(0, 0, 0, None)))(keys, state, action, params)
+    f = np.asarray(state.factors)
+    arms = jax.tree.map(lambda *x: jnp.stack(x), *[gv.paper_arm(
+        youngs_modulus=NOMINAL["youngs_modulus"] * e, damping=NOMINAL["damping"] * d, tip_force=BALL_WEIGHT * p)
+        for e, d, p in f])
+    throw = lambda k, s, a, arm: env.step(k, s, a, params.replace(arm=arm))  # noqa: E731
+    _, _, want, _, want_info = jax.jit(jax.vmap(throw))(keys, state.inner, action, arms)
+    assert np.allclose(info["cost"], want_info["cost"], rtol=0, atol=1e-10)
+    assert np.allclose(reward, want, rtol=0, atol=1e-12)
