@@ -13,8 +13,10 @@ Every registered task gets the id ``gvsjax/<ClassName>-v0`` (``gym_id``):
 ``gvsjax/Basketball-v0``, ``gvsjax/PickPlace-v0``, ...; a task registered
 after this import is added by ``register_all()``. Keyword arguments:
 ``env_params`` (the task's params pytree; default ``env.default_params()``,
-e.g. ``pickplace.make_params(split="test")`` for held-out targets) and
-``render_mode`` (``None`` or ``"rgb_array"``).
+e.g. ``pickplace.make_params(split="test")`` for held-out targets),
+``render_mode`` (``None`` or ``"rgb_array"``), and ``randomize`` /
+``randomize_observe`` (domain randomisation, as ``python -m gvsjax.train``'s keys:
+e.g. ``randomize="E:0.1,damping:0.1"`` draws a new model every episode).
 
 Conventions. Actions are float32 ``Box(-1, 1)``; out-of-range values are
 clipped by the task (its documented convention), a wrong shape or a NaN/inf
@@ -53,7 +55,7 @@ from gymnasium.vector.utils import batch_space
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax import sharding
-from gvsjax.tasks import DEFAULT_TASK, Environment, make, registered
+from gvsjax.tasks import DEFAULT_TASK, Environment, make, randomized, registered
 
 
 def gym_id(task: str) -> str:
@@ -114,11 +116,18 @@ def _raw_fns(env) -> tuple[Callable, Callable]:
     return reset, step
 
 
+def _program(env) -> tuple:
+    """What fixes an env's compiled functions: its task and, randomised, the ranges drawn."""
+    if isinstance(env, randomized.Randomized):
+        return (env.name, env.ranges, env.observe)
+    return (env.name,)
+
+
 def _single_fns(env) -> tuple[Callable, Callable]:
     """The jitted ``_raw_fns``, compiled once per task."""
-    if (env.name, "single") not in _COMPILED:
-        _COMPILED[env.name, "single"] = tuple(jax.jit(f) for f in _raw_fns(env))
-    return _COMPILED[env.name, "single"]
+    if (_program(env), "single") not in _COMPILED:
+        _COMPILED[_program(env), "single"] = tuple(jax.jit(f) for f in _raw_fns(env))
+    return _COMPILED[_program(env), "single"]
 
 
 def _vector_fns(env, num_envs: int) -> tuple[Callable, Callable]:
@@ -131,7 +140,7 @@ def _vector_fns(env, num_envs: int) -> tuple[Callable, Callable]:
     """
     mesh = sharding.mesh_for(num_envs)
     tag = ("vector", None if mesh is None else mesh.size)
-    if (env.name, tag) not in _COMPILED:
+    if (_program(env), tag) not in _COMPILED:
         reset1, step1 = _raw_fns(env)
 
         def step_autoreset(key, state, action, params):
@@ -144,9 +153,9 @@ def _vector_fns(env, num_envs: int) -> tuple[Callable, Callable]:
 
         reset = jax.vmap(reset1, in_axes=(0, None))
         step = jax.vmap(step_autoreset, in_axes=(0, 0, 0, None))
-        _COMPILED[env.name, tag] = (jax.jit(sharding.split_batch(reset, mesh, (0, None))),
-                                    jax.jit(sharding.split_batch(step, mesh, (0, 0, 0, None))))
-    return _COMPILED[env.name, tag]
+        _COMPILED[_program(env), tag] = (jax.jit(sharding.split_batch(reset, mesh, (0, None))),
+                                         jax.jit(sharding.split_batch(step, mesh, (0, 0, 0, None))))
+    return _COMPILED[_program(env), tag]
 
 
 def _info(info: dict, valid_default=True) -> dict[str, Any]:
@@ -172,10 +181,11 @@ class GvsjaxEnv(gym.Env):
     observation_space: spaces.Box
     action_space: spaces.Box
 
-    def __init__(self, task: str = DEFAULT_TASK, env_params=None, render_mode: str | None = None):
+    def __init__(self, task: str = DEFAULT_TASK, env_params=None, render_mode: str | None = None,
+                 randomize: str = "", randomize_observe: bool = False):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is invalid; choose None or 'rgb_array'")
-        self.task = make(task)
+        self.task = randomized.wrap(make(task), randomize, randomize_observe)
         self.env_params = self.task.default_params() if env_params is None else env_params
         self.observation_space, self.action_space = _spaces(self.task, self.env_params)
         self.render_mode = render_mode
@@ -237,12 +247,12 @@ class GvsjaxVectorEnv(gym.vector.VectorEnv):
     single_action_space: spaces.Box
 
     def __init__(self, num_envs: int = 1, task: str = DEFAULT_TASK, env_params=None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, randomize: str = "", randomize_observe: bool = False):
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs={num_envs!r} is invalid; expected an integer >= 1")
         if render_mode is not None:
             raise ValueError(f"render_mode={render_mode!r} is invalid; the vector env does not render")
-        self.task = make(task)
+        self.task = randomized.wrap(make(task), randomize, randomize_observe)
         self.env_params = self.task.default_params() if env_params is None else env_params
         self.num_envs = int(num_envs)
         self.single_observation_space, self.single_action_space = _spaces(self.task, self.env_params)

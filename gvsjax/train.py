@@ -60,7 +60,7 @@ from gvsjax.ppo import (
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.ppo.config import field_parsers
 from gvsjax.runlog import MetricsLog, non_finite, rows_of
-from gvsjax.tasks import DEFAULT_TASK, Environment, make, registered
+from gvsjax.tasks import DEFAULT_TASK, Environment, make, randomized, registered
 
 RUN_DOCS: dict[str, tuple[Any, str]] = {
     "task": (DEFAULT_TASK, "task to train (one of the registered tasks, see below)"),
@@ -69,6 +69,10 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "preset": ("none", f"override set applied before yours: {sorted(PRESETS)}"),
     "train_targets": ("", "training distribution of a task with several (its train_variants, listed "
                           "below); empty: the task's own choice. Evaluation uses the task's default params"),
+    "randomize": ("", "domain randomisation: NAME:r,... draws each named physical parameter per episode "
+                      "uniformly in nominal x [1-r, 1+r], 0 < r < 1 (names: the task's, listed below); "
+                      "empty: none. Evaluation uses the nominal model"),
+    "randomize_observe": (False, "append the episode's factors, as (factor - 1) / r, to the observation"),
     "sim_dtype": ("", "simulator precision in training: float64 or float32 (float32: ~2.7x the throws/s "
                       "of a batch); empty: float64, or the resumed run's. Evaluation simulates in float64"),
     "checkpoint_every": (60.0, "seconds of training between checkpoints"),
@@ -131,6 +135,7 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     env = make(run["task"])
     if run["train_targets"] and run["train_targets"] not in env.train_variants:
         Environment.train_params(env, run["train_targets"])  # raises, naming the choices
+    randomized.wrap(env, run["randomize"], run["randomize_observe"])  # raises on a bad randomize=
     return run, ppo
 
 
@@ -158,7 +163,8 @@ def update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targ
     """The jitted update, cached per program: runs differing only in seed share one (the
     seed lives in the TrainState's key), so a seed sweep in one process compiles once."""
     config = config.replace(seed=0)
-    key = (task, config, per_call, targets, sim_dtype or "float64")
+    randomization = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ()
+    key = (task, config, per_call, targets, sim_dtype or "float64", randomization)
     if key not in _STEP_CACHE:
         _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
     return _STEP_CACHE[key]
@@ -169,8 +175,10 @@ def help_text() -> str:
     for key, (default, doc) in RUN_DOCS.items():
         lines.append(f"  {key}={default}".ljust(34) + f"  {doc}")
     for task in registered():
-        variants = make(task).train_variants
-        lines.append(f"  task={task}" + (f": train_targets in {list(variants)}" if variants else ""))
+        env = make(task)
+        variants = env.train_variants
+        lines.append(f"  task={task}" + (f": train_targets in {list(variants)}; " if variants else ": ")
+                     + f"randomize names {sorted(env.randomizable)}")
     for task in registered():
         config = build_config(task_defaults(task), "none", {})
         lines += ["", f"PPO config (defaults for task={task}):", describe(config)]
@@ -194,11 +202,21 @@ def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConf
     if run["train_targets"] and run["train_targets"] != saved_targets:
         raise ValueError(f"resume: train_targets={run['train_targets']!r} differs from the checkpoint's "
                          f"{saved_targets!r}; start a new run instead")
+    saved_randomize = meta["config"].get("randomize", "")
+    env = make(task)
+    if run["randomize"] and randomized.parse(run["randomize"], env) != randomized.parse(saved_randomize, env):
+        raise ValueError(f"resume: randomize={run['randomize']!r} differs from the checkpoint's "
+                         f"{saved_randomize!r}; start a new run instead")
+    saved_observe = bool(meta["config"].get("randomize_observe", False))
+    if run["randomize_observe"] and not saved_observe:
+        raise ValueError("resume: randomize_observe=true differs from the checkpoint's false (it fixes the "
+                         "observation's width); start a new run instead")
     saved_dtype = meta["config"].get("sim_dtype", "") or "float64"
     if run["sim_dtype"] and run["sim_dtype"] != saved_dtype:
         raise ValueError(f"resume: sim_dtype={run['sim_dtype']!r} differs from the checkpoint's "
                          f"{saved_dtype!r}; start a new run instead")
-    return saved.replace(**overrides), {**run, "train_targets": saved_targets, "sim_dtype": saved_dtype}, meta
+    return saved.replace(**overrides), {**run, "train_targets": saved_targets, "sim_dtype": saved_dtype,
+                                        "randomize": saved_randomize, "randomize_observe": saved_observe}, meta
 
 
 def _process_envs(config: PPOConfig, state) -> str:
@@ -227,6 +245,10 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     else:
         config = build_config(task_defaults(task), run["preset"], overrides)
         run = {**run, "sim_dtype": run["sim_dtype"] or "float64"}
+    # randomize= wraps the task (a no-op when empty); its canonical text is what the run records
+    env = randomized.wrap(env, run.get("randomize", ""), run.get("randomize_observe", False))
+    ranges, observe = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ((), False)
+    run = {**run, "randomize": randomized.text_of(ranges), "randomize_observe": observe}
     if jax.process_count() > 1 and config.num_envs % jax.device_count():
         raise ValueError(f"num_envs={config.num_envs} is invalid over {jax.process_count()} processes; "
                          f"expected a multiple of their {jax.device_count()} devices")
@@ -234,7 +256,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         out.mkdir(parents=True, exist_ok=True)
         (out / "config.json").write_text(json.dumps(
             {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
-             "sim_dtype": run["sim_dtype"], **dataclasses.asdict(config)}, indent=2))
+             "sim_dtype": run["sim_dtype"], "randomize": run["randomize"],
+             "randomize_observe": run["randomize_observe"], **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
     env_params = training_params(env, run["train_targets"], run["sim_dtype"])
@@ -257,6 +280,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
     config_dict = {"task": task, "train_targets": run["train_targets"], "sim_dtype": run["sim_dtype"],
+                   "randomize": run["randomize"], "randomize_observe": run["randomize_observe"],
                    **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()
     saved_update = int(state.update) if run["resume"] else None

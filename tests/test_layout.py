@@ -166,7 +166,8 @@ def test_generic_modules_name_no_task():
     """The command line, Gymnasium, PPO and shared figures reach tasks only through the registry."""
     from gvsjax.tasks import registered
 
-    generic = ["train.py", "evaluate.py", "animate.py", "runlog.py", "gym.py", "plots.py", "keyvalue.py"]
+    generic = ["train.py", "evaluate.py", "animate.py", "runlog.py", "gym.py", "plots.py", "keyvalue.py",
+               "tasks/base.py", "tasks/randomized.py"]
     generic += [str(p.relative_to(ROOT)) for p in (ROOT / "ppo").glob("*.py")]
     for rel in generic:
         for text in _string_constants(ROOT / rel):

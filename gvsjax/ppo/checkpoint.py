@@ -34,6 +34,7 @@ from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import policy_action
 from gvsjax.ppo.train import init
 from gvsjax.tasks import make
+from gvsjax.tasks.randomized import wrap
 
 FORMAT = "gvsjax-checkpoint-v1"
 
@@ -192,11 +193,15 @@ def load(path, template) -> tuple[Any, dict]:
 def load_policy(path):
     """``(config, env, env_params, network params)`` of a training checkpoint (file or run folder).
 
-    ``env_params`` are the task's ``default_params()``, the evaluation distribution.
+    ``env_params`` are the task's ``default_params()``, the evaluation distribution. A run
+    trained with ``randomize=`` gives its ``Randomized`` env, whose ``evaluate`` is the task's
+    on the nominal model (``gvsjax.tasks.randomized.nominal`` gives the task and a policy of its
+    observations).
     """
     meta = load_raw(path)
     config = config_from_json(meta["config"], f"the config saved in {path}")
-    env = make(meta["task"])
+    env = wrap(make(meta["task"]), meta["config"].get("randomize", ""),
+               meta["config"].get("randomize_observe", False))
     env_params = env.default_params()
     template = jax.eval_shape(lambda: init(config, env, env_params, jax.random.PRNGKey(0)))
     template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template)

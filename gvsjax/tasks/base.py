@@ -43,8 +43,70 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from gvsjax.model import PointLoad, PointMass, Robot, SoftLink
+
 PyTree = Any
 Policy = Callable[[jax.Array], jax.Array]  # (batch, obs_size) -> (batch, action_size), jittable
+# (params, factor) -> params with one physical parameter multiplied by factor (a traced scalar)
+Scale = Callable[[PyTree, jax.Array], PyTree]
+
+
+def _map_robots(params: PyTree, fn: Callable[[Robot], Robot], what: str) -> PyTree:
+    """``params`` with ``fn`` applied to every ``gv.Robot`` inside (a ValueError if none)."""
+    found = []
+
+    def visit(x):
+        if isinstance(x, Robot):
+            found.append(x)
+            return fn(x)
+        return x
+
+    out = jax.tree.map(visit, params, is_leaf=lambda x: isinstance(x, Robot))
+    if not found:
+        raise ValueError(f"randomize: {what} scales the gv.Robot in the task's params, but its params hold "
+                         "none; the task must override Environment.randomizable")
+    return out
+
+
+def scale_material(field: str) -> Scale:
+    """A ``Scale`` multiplying ``Material.<field>`` of every soft link of every robot in the params.
+
+    The section's stiffness, damping and inertia are assembled from the material inside the
+    dynamics (``gvsjax.dynamics.section``) at every call, so scaling the leaf is all it takes.
+    """
+
+    def scale(params, factor):
+        def robot(r: Robot) -> Robot:
+            links = tuple(dataclasses.replace(link, material=dataclasses.replace(
+                link.material, **{field: getattr(link.material, field) * factor}))
+                if isinstance(link, SoftLink) else link for link in r.links)
+            return dataclasses.replace(r, links=links)
+
+        return _map_robots(params, robot, field)
+
+    return scale
+
+
+def scale_payload(params: PyTree, factor: jax.Array) -> PyTree:
+    """Every point load's magnitude and every point mass of every robot in the params x ``factor``
+    (a task's payload when it is carried that way, e.g. basketball's ball, a tip force)."""
+
+    def robot(r: Robot) -> Robot:
+        loads = tuple(dataclasses.replace(load, magnitude=load.magnitude * factor)
+                      if isinstance(load, PointLoad) else load for load in r.loads)
+        masses = tuple(dataclasses.replace(m, mass=m.mass * factor) if isinstance(m, PointMass) else m
+                       for m in r.masses)
+        return dataclasses.replace(r, loads=loads, masses=masses)
+
+    return _map_robots(params, robot, "payload")
+
+
+# The default ``Environment.randomizable``: the soft material of the task's robot(s)
+ROBOT_MATERIAL: Mapping[str, Scale] = {
+    "E": scale_material("youngs_modulus"),
+    "damping": scale_material("damping"),
+    "density": scale_material("density"),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,6 +155,10 @@ class Environment:
     animation_keys: ClassVar[Mapping[str, Any]] = {}
     # True: ``animate`` takes ``policy=`` (closed-loop tasks; the CLI's ``checkpoint=`` key loads one)
     animates_policy: ClassVar[bool] = False
+    # physical parameters training may randomise (``randomize=NAME:r,...``, gvsjax.tasks.randomized):
+    # name -> (params, factor) -> params with that parameter x factor. Default: the soft material
+    # (E, damping eta, density) of every gv.Robot in the params; a task adds its payload, if any.
+    randomizable: ClassVar[Mapping[str, Scale]] = ROBOT_MATERIAL
 
     # ------------------------------------------------------------------ the functional API
 

@@ -24,7 +24,16 @@ from flax import struct
 
 from gvsjax import plots
 from gvsjax.robots import paper_arm
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, bounded, sanitize_action
+from gvsjax.tasks.base import (
+    ROBOT_MATERIAL,
+    Box,
+    Environment,
+    EvalResult,
+    Policy,
+    bounded,
+    sanitize_action,
+    scale_payload,
+)
 from gvsjax.tasks.basketball import figures, throw
 from gvsjax.tasks.basketball.params import BALL_WEIGHT, BasketballParams
 from gvsjax.tasks.basketball.targets import make_params, normalise, sample_target
@@ -68,6 +77,8 @@ class Basketball(Environment):
     train_variants = ("action", "area", "mixed")
     rows_file = "eval_throws.csv"
     animation_keys = {"T": 2.0, "delta": 0.9, "target": "", "frames": 60, "fps": 20, "dpi": 80}
+    # the arm's material, and the payload: the ball's weight m g (in the task a tip force, no inertia)
+    randomizable = {**ROBOT_MATERIAL, "payload": scale_payload}
     # One throw per env step is the cost, network updates are cheap: large batches, 8 epochs x 8
     # minibatches of reuse, a high learning rate annealed to 0, no entropy bonus so the std can
     # shrink to cm precision. The last 0.1-0.5% of targets (sparse top corners, 1 cm needs delta
