@@ -172,22 +172,37 @@ def test_equilibrium_rejects_bad_strain_force():
         gv.equilibrium(PLANAR, strain_force=np.zeros(4))
 
 
-def test_strain_force_under_jit_vmap_grad_and_a_controller():
-    def tip_y(u):
-        tr = gv.simulate(PLANAR, 0.05, n_steps=10, strain_force=jnp.asarray(B_PLANAR) @ u)
-        return tr.tip[-1, 1]
+# one DoF (a constant curvature): the simulate compiles below are the module's largest
+ROD_1 = gv.rod_3d(length=L, radius=R, youngs_modulus=E, poisson=NU, order=(-1, -1, 0, -1, -1, -1), n_gauss=1,
+                  damping=2e4)
+B_1 = jnp.asarray(gv.moment_map(ROD_1, components=("bend_z",)))
+U = jnp.linspace(0.5, 1.0, 6)
 
-    u = jnp.linspace(0.5, 1.0, 6)
-    y = jax.jit(tip_y)(u)
+
+def tip_y(u):
+    return gv.simulate(ROD_1, 0.05, n_steps=10, strain_force=B_1 @ u).tip[-1, 1]
+
+
+def test_strain_force_under_jit_and_a_controller():
+    y = jax.jit(tip_y)(U)
     assert float(y) > 0  # bending about +z turns the tip towards +y
-    g = jax.grad(tip_y)(u)
+    held = gv.simulate(ROD_1, 0.05, n_steps=10, control_every=5,
+                       controller=lambda t, q, qd: {"strain_force": B_1 @ U})
+    np.testing.assert_allclose(float(held.tip[-1, 1]), float(y), rtol=1e-12)
+    # differentiable where it enters: the accelerations' derivative in u is M^-1 B
+    system = lambda u: FreeDynamics(ROD_1, lambda t: jnp.zeros(0), strain_force=lambda t, q, qd: B_1 @ u)  # noqa: E731
+    accel = lambda u: system(u).accel(0.0, (jnp.asarray(0.1),), (jnp.asarray(0.0),))[0]  # noqa: E731
+    M, _ = gv.mass_and_forces(ROD_1, [0.1], [0.0])
+    np.testing.assert_allclose(np.asarray(jax.grad(accel)(U)), np.asarray(B_1[0]) / float(M[0][0]), rtol=1e-12)
+
+
+@pytest.mark.extended
+def test_strain_force_under_grad_vmap_and_a_state_law():
+    y = tip_y(U)
+    g = jax.grad(tip_y)(U)
     e = jnp.zeros(6).at[2].set(1e-3)
-    np.testing.assert_allclose(float(g[2]), float(tip_y(u + e) - tip_y(u - e)) / 2e-3, rtol=1e-6)
-    ys = jax.vmap(tip_y)(jnp.stack([u, 2 * u]))
-    np.testing.assert_allclose(np.asarray(ys[0]), float(y), rtol=1e-12)
-    # the same force as a law of (t, q, qd) and as a sampled controller's output
-    law = gv.simulate(PLANAR, 0.05, n_steps=10, strain_force=lambda t, q, qd: jnp.asarray(B_PLANAR) @ u)
-    held = gv.simulate(PLANAR, 0.05, n_steps=10, control_every=5,
-                       controller=lambda t, q, qd: {"strain_force": jnp.asarray(B_PLANAR) @ u})
-    for tr in (law, held):
-        np.testing.assert_allclose(float(tr.tip[-1, 1]), float(y), rtol=1e-12)
+    np.testing.assert_allclose(float(g[2]), float(tip_y(U + e) - tip_y(U - e)) / 2e-3, rtol=1e-6)
+    ys = jax.vmap(tip_y)(jnp.stack([U, 2 * U]))
+    np.testing.assert_allclose(float(ys[0]), float(y), rtol=1e-12)
+    law = gv.simulate(ROD_1, 0.05, n_steps=10, strain_force=lambda t, q, qd: B_1 @ U)
+    np.testing.assert_allclose(float(law.tip[-1, 1]), float(y), rtol=1e-12)
