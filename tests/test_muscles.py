@@ -89,6 +89,14 @@ def test_helix_in_equilibrium_on_the_3d_rod():
     np.testing.assert_allclose(np.asarray(gv.tip_frame(ROD, res.q)[1]), g[:3, 3], rtol=0, atol=1e-12)
 
 
+def test_equilibrium_derivative_in_the_moments_is_the_compliance():
+    """d q / d u = K^-1 B on the weightless rod, through the solver's implicit-function rule."""
+    u = np.full(6, 0.3 * EI)
+    J = jax.jacfwd(lambda v: gv.equilibrium(PLANAR, strain_force=jnp.asarray(B_PLANAR) @ v).q)(jnp.asarray(u))
+    K = gv.dynamics.full_matrix(gv.stiffness_and_damping(PLANAR)[0], PLANAR.n_dofs)
+    np.testing.assert_allclose(np.asarray(J), np.linalg.solve(np.asarray(K), B_PLANAR), rtol=1e-9, atol=1e-12)
+
+
 def test_linear_moment_matches_beam_theory():
     """m_z(s) = M0 (1 - s/L): curvature M0 (1 - s/L) / EI, held exactly by the linear basis;
     the tip of that curve by quadrature, to the recursion's own discretisation error (the
