@@ -71,6 +71,7 @@ from gvsjax.model import (  # noqa: E402
     TendonPath,
     axis_rotation,
 )
+from gvsjax.muscles import control_points, moment_map  # noqa: E402
 from gvsjax.robots import PAPER_ARM, SOFT_ARM, TENDON_ARM, paper_arm, rod_3d, soft_arm, tendon_arm  # noqa: E402
 from gvsjax.simulation import simulate  # noqa: E402
 from gvsjax.stability import stable_step_estimate  # noqa: E402
@@ -83,6 +84,6 @@ __all__ = [
     "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_frame", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
-    "stiffness_and_damping", "equilibrium", "inverse_statics",
+    "stiffness_and_damping", "equilibrium", "inverse_statics", "moment_map", "control_points",
     "Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box",
 ]

@@ -123,9 +123,22 @@ def joint_force_law(robot: Robot, joint_force) -> tuple[Law | None, Any]:
     return input_law("joint_force", joint_force, len(robot.actuated), "actuated joints", False)
 
 
+def strain_force_law(robot: Robot, strain_force) -> tuple[Law | None, Any]:
+    """A generalized force on every coordinate, (n_dofs,): (callable law or None, constant array or None).
+
+    Unlike the per-actuator inputs no scalar is broadcast: a force on every coordinate at
+    once is almost never meant, and a wrong-length vector is a wrong map."""
+    n = robot.n_dofs
+    if strain_force is not None and not callable(strain_force):
+        require(not isinstance(strain_force, (str, bytes)) and np.shape(strain_force) == (n,), "strain_force",
+                strain_force, f"an array of shape ({n},) (one generalized force per coordinate), or a callable")
+    return input_law("strain_force", strain_force, n, "coordinates", False)
+
+
 @dataclass(frozen=True)
 class Controller:
-    """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,), "wrench": (n_w, 6)}``
+    """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,), "wrench": (n_w, 6),
+    "strain_force": (n,)}`` (any subset of the keys)
     sampled every ``every`` integrator steps and held in between (zero-order hold).
 
     Hashed by the function's identity (the compiled program is reused)."""
@@ -139,10 +152,11 @@ class Controller:
         return {k: jnp.reshape(jnp.asarray(out[k]).astype(jnp.result_type(t)), (-1,)) for k in self.keys}
 
 
-CONTROL_KEYS = ("tendon_force", "joint_force", "wrench")
+CONTROL_KEYS = ("tendon_force", "joint_force", "wrench", "strain_force")
 
 
-def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None) -> Controller | None:
+def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None,
+               strain_force=None) -> Controller | None:
     """The checked zero-order-hold controller, or None."""
     if fn is None:
         require(every is None, "control_every", every, "None without a controller")
@@ -156,8 +170,9 @@ def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None) 
     require(isinstance(out, dict) and bool(out) and set(out) <= set(CONTROL_KEYS), "controller", fn,
             f"a callable returning a dict with keys among {list(CONTROL_KEYS)}")
     sizes = {"tendon_force": len(robot.tendons), "joint_force": len(robot.actuated),
-             "wrench": 6 * len(robot.wrenches)}
-    for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force), ("wrench", wrench)):
+             "wrench": 6 * len(robot.wrenches), "strain_force": robot.n_dofs}
+    for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force), ("wrench", wrench),
+                       ("strain_force", strain_force)):
         if key in out:
             require(given is None, key, given, "None when the controller sets it")
             require(math.prod(out[key].shape) == sizes[key] > 0, "controller", fn,

@@ -34,6 +34,7 @@ def simulate(
     joint_motion: Callable | None = None,
     joint_force: Any = None,
     wrench: Any = None,
+    strain_force: Any = None,
     controller: Callable | None = None,
     control_every: int | None = None,
     check_stability: bool = True,
@@ -59,8 +60,13 @@ def simulate(
     wrench: None, (n_wrenches, 6) wrenches (moment N m, force N) at the
     robot's ``wrenches`` points (world or section frame), or a callable of t
     or of (t, q, qd) returning them.
+    strain_force: None, an (n,) generalized force added to the right-hand side
+    of every coordinate (N m or N; e.g. ``gvsjax.muscles.moment_map(robot) @ u``,
+    internal moments on the strain coordinates), or a callable of t or of
+    (t, q, qd) returning it.
     controller, control_every: a sampled feedback controller (t, q, qd) ->
-    {"tendon_force": ..., "joint_force": ..., "wrench": ...} evaluated every
+    {"tendon_force": ..., "joint_force": ..., "wrench": ..., "strain_force": ...}
+    (any of the keys) evaluated every
     ``control_every`` integrator steps on the current state, its outputs held
     in between (zero-order hold, as a digital controller or an RL policy acts).
     q0, qd0: (n,) initial coordinates/velocities (default: rest); entries of
@@ -84,9 +90,9 @@ def simulate(
     laws = (("base_angle", base_angle, (1,), False), ("joint_motion", joint_motion, (len(robot.prescribed),), False),
             ("tendon_force", tendon_force, (1, len(robot.tendons)), True),
             ("joint_force", joint_force, (1, len(robot.actuated)), True),
-            ("wrench", wrench, (6 * len(robot.wrenches),), True))
+            ("wrench", wrench, (6 * len(robot.wrenches),), True), ("strain_force", strain_force, (n,), True))
     inputs.check_call(robot, integrator, duration, dt, n_steps, save_every, laws)
-    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench)
+    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench, strain_force)
     dtype = inputs.float_dtype(dtype)
     n_steps, dt = inputs.steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
@@ -97,6 +103,7 @@ def simulate(
     tension_law, tension_value = inputs.tension_law(robot, tendon_force)
     force_law, force_value = inputs.joint_force_law(robot, joint_force)
     wrench_law, wrench_value = inputs.wrench_law(robot, wrench)
+    strain_law, strain_value = inputs.strain_force_law(robot, strain_force)
     if check_stability and concrete(dt) and concrete(q0) and inputs.robot_is_concrete(robot):
         limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
         require(float(dt) <= limit, "dt", float(dt),
@@ -105,15 +112,14 @@ def simulate(
     if control is not None:
         require(n_steps % control.every == 0, "control_every", control.every,
                 f"a divisor of n_steps={n_steps} (whole control periods)")
-    tension_value = None if tension_value is None else tension_value.astype(dtype)
-    force_value = None if force_value is None else force_value.astype(dtype)
-    wrench_value = None if wrench_value is None else wrench_value.astype(dtype)
+    values = tuple(None if v is None else v.astype(dtype)
+                   for v in (tension_value, force_value, wrench_value, strain_value))
     if dtype == np.float32:  # float64 array leaves (a traced E, say) would lift the run back to float64
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
     return _run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
-                jnp.asarray(dt, dtype=dtype), (tension_value, force_value, wrench_value), n_steps=n_steps,
-                save_every=save_every, integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law),
+                jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
+                integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law),
                 control=control)
 
 
@@ -128,7 +134,8 @@ def _held(system: FreeDynamics, held: dict) -> FreeDynamics:
     """``system`` with the controller's held outputs in place of its own inputs."""
     pick = lambda key, own: (lambda t, q, qd: held[key]) if key in held else own  # noqa: E731
     return FreeDynamics(system.robot, system.motion, pick("tendon_force", system.tension),
-                        pick("joint_force", system.joint_force), pick("wrench", system.wrench))
+                        pick("joint_force", system.joint_force), pick("wrench", system.wrench),
+                        pick("strain_force", system.strain_force))
 
 
 def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:

@@ -1,8 +1,8 @@
 """Static equilibrium and inverse statics of a GVS robot.
 
 ``equilibrium`` solves F(q, qd = 0) = 0 for the free DoFs (F: gravity, point
-loads, tendons and the elastic force -K q, from ``dynamics.mass_and_forces``)
-by Newton's method with a backtracking line search, optionally raising the
+loads, tendons, a given generalized force and the elastic force -K q, from
+``dynamics.mass_and_forces``) by Newton's method with a backtracking line search, optionally raising the
 loads in ``load_scale_steps`` steps (continuation). Its derivatives come from
 the implicit function theorem (a ``custom_jvp`` rule reusing Newton's last
 Jacobian), not from unrolling the iterations.
@@ -63,15 +63,16 @@ class InverseStaticsResult(NamedTuple):
     converged: jax.Array
 
 
-def _forces(robot: Robot, q: jax.Array, tension: jax.Array, s: Any) -> jax.Array:
-    """F(q, qd = 0), shape (n,), with gravity, point loads and tensions scaled by s."""
+def _forces(robot: Robot, q: jax.Array, tension: jax.Array, s: Any, generalized: jax.Array) -> jax.Array:
+    """F(q, qd = 0), shape (n,), with gravity, point loads, tensions and the generalized
+    force (``strain_force``) scaled by s."""
     n = robot.n_dofs
     loads = tuple(dataclasses.replace(load, magnitude=s * load.magnitude) for load in robot.loads)
     scaled = dataclasses.replace(robot, gravity=s * robot.gravity, loads=loads)  # point masses weigh via gravity
     # qd as structural zeros: the velocity terms vanish at trace time
     _, F = dynamics.mass_and_forces(scaled, [q[i] for i in range(n)], [0] * n,
                                     [s * tension[k] for k in range(len(robot.tendons))])
-    return jnp.stack([lie.as_array(f) for f in F]).astype(q.dtype)
+    return (jnp.stack([lie.as_array(f) for f in F]) + s * generalized).astype(q.dtype)
 
 
 def _relative(r: jax.Array, kq: jax.Array) -> jax.Array:
@@ -118,13 +119,13 @@ def _parts(robot: Robot, q_start: jax.Array, qa: jax.Array) -> tuple:
 
 
 @jax.custom_jvp
-def _root(robot: Robot, q_start, tension, qa, steps, tol, max_iter) -> tuple:
+def _root(robot: Robot, q_start, tension, qa, generalized, steps, tol, max_iter) -> tuple:
     """(free q, Jacobian of F_u there, relative residual, Newton steps as a float)."""
     u, full, K_u = _parts(robot, q_start, qa)
 
     def stage(i, c):
         s = (i + 1) / steps
-        qu, jac, rel, it = _newton(lambda v: (_forces(robot, full(v), tension, s)[u], K_u @ full(v)), c[0],
+        qu, jac, rel, it = _newton(lambda v: (_forces(robot, full(v), tension, s, generalized)[u], K_u @ full(v)), c[0],
                                    tol, max_iter)
         return qu, jac, rel, c[3] + it
 
@@ -138,12 +139,12 @@ def _root(robot: Robot, q_start, tension, qa, steps, tol, max_iter) -> tuple:
 def _root_jvp(primals: tuple, tangents: tuple) -> tuple:
     """F_u(q_u*, p) = 0 gives dq_u* = -(dF_u/dq_u)^-1 (dF_u/dp) dp, with the Jacobian
     Newton ended on (taken at the returned point). First derivatives only."""
-    robot, q_start, tension, qa = primals[:4]
+    robot, q_start, tension, qa, generalized = primals[:5]
     out = _root(*primals)
     qu, jac = out[0], out[1]
-    leaves, tree = jax.tree_util.tree_flatten((robot, tension, qa))
+    leaves, tree = jax.tree_util.tree_flatten((robot, tension, qa, generalized))
     is_zero = lambda t: isinstance(t, SymbolicZero)  # noqa: E731
-    d_leaves = jax.tree_util.tree_leaves((tangents[0], tangents[2], tangents[3]), is_leaf=is_zero)
+    d_leaves = jax.tree_util.tree_leaves((tangents[0], tangents[2], tangents[3], tangents[4]), is_leaf=is_zero)
     assert len(d_leaves) == len(leaves)  # one tangent (maybe a symbolic zero) per leaf
     active = [i for i, d in enumerate(d_leaves) if not is_zero(d)]  # differentiate only what varies
 
@@ -151,9 +152,9 @@ def _root_jvp(primals: tuple, tangents: tuple) -> tuple:
         ls = list(leaves)
         for i, x in zip(active, xs):
             ls[i] = x
-        robot_, tension_, qa_ = jax.tree_util.tree_unflatten(tree, ls)
+        robot_, tension_, qa_, generalized_ = jax.tree_util.tree_unflatten(tree, ls)
         u, full, _ = _parts(robot_, q_start, qa_)
-        return _forces(robot_, full(qu), tension_, 1.0)[u]
+        return _forces(robot_, full(qu), tension_, 1.0, generalized_)[u]
 
     d_qu = jnp.zeros_like(qu)
     if active:
@@ -162,9 +163,9 @@ def _root_jvp(primals: tuple, tangents: tuple) -> tuple:
     return out, (d_qu, jnp.zeros_like(jac), jnp.zeros_like(out[2]), jnp.zeros_like(out[3]))
 
 
-def _solve(robot: Robot, q_start, tension, qa, steps, tol, max_iter) -> StaticsResult:
+def _solve(robot: Robot, q_start, tension, qa, generalized, steps, tol, max_iter) -> StaticsResult:
     """The traced solver; ``steps`` may be traced: one program for any number of load steps."""
-    qu, _, rel, its = _root(robot, q_start, tension, qa, steps, tol, max_iter)
+    qu, _, rel, its = _root(robot, q_start, tension, qa, generalized, steps, tol, max_iter)
     return StaticsResult(_parts(robot, q_start, qa)[1](qu), rel, its.astype(int), rel <= tol)
 
 
@@ -213,25 +214,32 @@ def _prescribed(robot: Robot, value: Any, q0: jax.Array, name: str) -> jax.Array
 
 
 def equilibrium(robot: Robot, q0: Any = None, *, tendon_force: Any = None, prescribed: Any = None,
-                load_scale_steps: int = 1, tol: float = 1e-10, max_iter: int = 50) -> StaticsResult:
+                strain_force: Any = None, load_scale_steps: int = 1, tol: float = 1e-10,
+                max_iter: int = 50) -> StaticsResult:
     """The static equilibrium F(q, qd = 0) = 0 of the free DoFs.
 
     q0: (n,) starting guess (default: straight, q = 0). tendon_force: tension(s)
     >= 0 N, one value or one per tendon (default 0). prescribed: (n_prescribed,)
     values at which ``robot.prescribed`` DoFs are held (default: their q0).
-    load_scale_steps: k > 1 solves with gravity, point loads and tensions
+    strain_force: (n,) generalized force added to F, as ``simulate``'s (default 0;
+    e.g. ``gvsjax.muscles.moment_map(robot) @ u``).
+    load_scale_steps: k > 1 solves with gravity, point loads, tensions and strain_force
     scaled by 1/k, 2/k, ..., 1, each Newton solve starting from the last (for
     loads beyond Newton's reach from q0). tol: on the relative residual (see
     ``StaticsResult``); max_iter: Newton steps per load step. A failed solve
     is not an exception: check ``converged``.
 
     Differentiable (first order, implicit function theorem) in the robot's
-    leaves, tendon_force and prescribed.
+    leaves, tendon_force, prescribed and strain_force.
     """
     q0 = _check(robot, q0, load_scale_steps, tol, max_iter)
     tension = _tension(robot, tendon_force, "tendon_force")
     qa = _prescribed(robot, prescribed, q0, "prescribed")
-    return _solve_jit(robot, q0, tension, qa, load_scale_steps, tol, max_iter)
+    n = robot.n_dofs
+    generalized = jnp.zeros(n) if strain_force is None else _vector(
+        "strain_force", strain_force, n, f"finite generalized forces, one per coordinate, shape ({n},)", False,
+        ((n,),))
+    return _solve_jit(robot, q0, tension, qa, generalized, load_scale_steps, tol, max_iter)
 
 
 CONTROLS = ("tension", "prescribed")
@@ -285,7 +293,7 @@ def _inverse(robot: Robot, target, q0, tension, qa, steps, tol, max_iter, eq_tol
 
     def tip(x, q_start, k):
         T, qa_ = unpack(x)
-        res = _solve(robot, q_start, T, qa_, k, eq_tol, eq_max_iter)
+        res = _solve(robot, q_start, T, qa_, jnp.zeros(robot.n_dofs, q_start.dtype), k, eq_tol, eq_max_iter)
         p = backbone(robot, res.q)[-1]
         return p, (p, res)
 

@@ -48,14 +48,17 @@ def _vector(xs) -> jax.Array:
 class FreeDynamics:
     """The free DoFs' equations with the prescribed ones following ``motion``.
 
-    ``tension`` and ``joint_force`` are ``Law``-like callables ``(t, q, qd)``
-    (or None: zero); ``q``, ``qd`` are the full coordinate vectors.
+    ``tension``, ``joint_force``, ``wrench`` and ``strain_force`` are ``Law``-like
+    callables ``(t, q, qd)`` (or None: zero); ``q``, ``qd`` are the full coordinate
+    vectors. ``strain_force`` returns (n,), a generalized force added to F as it is
+    (e.g. ``gvsjax.muscles``' moments mapped onto the strain coordinates).
     """
 
     def __init__(self, robot: Robot, motion: Callable, tension: Callable | None = None,
-                 joint_force: Callable | None = None, wrench: Callable | None = None):
+                 joint_force: Callable | None = None, wrench: Callable | None = None,
+                 strain_force: Callable | None = None):
         self.robot, self.motion, self.tension, self.joint_force = robot, motion, tension, joint_force
-        self.wrench = wrench
+        self.wrench, self.strain_force = wrench, strain_force
         self.a, self.u = robot.prescribed, robot.free
 
     def prescribed_state(self, t):
@@ -95,6 +98,9 @@ class FreeDynamics:
         q, qd, qdda = self.full_state(t, q_u, qd_u)
         tension, force, wrench = self.inputs(t, q, qd)
         M, F = dynamics.mass_and_forces(self.robot, q, qd, tension, force, wrench, t)
+        if self.strain_force is not None:
+            tau = self.strain_force(t, _vector(q), _vector(qd))
+            F = [lie.add(f, tau[i]) for i, f in enumerate(F)]
         return q, qd, qdda, M, F
 
     def accel(self, t, q_u, qd_u):

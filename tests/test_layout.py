@@ -15,7 +15,7 @@ LAYERS = {
     "lie": (1, ["gvsjax.lie"]),
     "model": (2, ["gvsjax.model", "gvsjax.obstacles", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
     "kinematics": (3, ["gvsjax.magnus", "gvsjax.scan", "gvsjax.kinematics"]),
-    "dynamics": (4, ["gvsjax.tendons", "gvsjax.contact", "gvsjax.dynamics"]),
+    "dynamics": (4, ["gvsjax.muscles", "gvsjax.tendons", "gvsjax.contact", "gvsjax.dynamics"]),
     "integrators": (5, ["gvsjax.integrators"]),
     "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
                        "gvsjax.simulation", "gvsjax.statics"]),
