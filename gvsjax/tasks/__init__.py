@@ -13,3 +13,4 @@ DEFAULT_TASK = "basketball"  # what the command line and Gymnasium run when no t
 register("basketball", "gvsjax.tasks.basketball:Basketball")
 register("pickplace", "gvsjax.tasks.pickplace:PickPlace")
 register("track3d", "gvsjax.tasks.track3d:Track3D")
+register("balance", "gvsjax.tasks.balance:Balance")
