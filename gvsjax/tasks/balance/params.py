@@ -29,9 +29,8 @@ class BalanceParams:
     start_angle: float = 0.1  # rad: the base starts at a uniform angle in +-start_angle from hanging
     start_rate: float = 0.3  # rad/s: and a uniform base rate in +-start_rate
     upright_deg: float = 5.0  # success: the tip within this angle of straight above the base
-    action_cost: float = 0.02  # reward -= action_cost a^2
-    speed_cost: float = 0.02  # reward -= speed_cost min(1, (tip speed / speed_scale)^2)
-    speed_scale: float = 1.0  # m/s
+    action_cost: float = 0.2  # reward x (1 - action_cost a^2), in [0, 1]
+    speed_scale: float = 2.0  # m/s: reward / (1 + (tip speed / speed_scale)^2)
     # ars443 steps per control step (experiments/balance_substeps.py)
     n_substeps: int = struct.field(pytree_node=False, default=4)
     integrator: str = struct.field(pytree_node=False, default="ars443")
