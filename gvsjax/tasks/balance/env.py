@@ -178,12 +178,15 @@ class Balance(Environment):
                    "time_to_upright_s": _stats(t_up[ok]), "wobble_rms_deg": _stats(s["wobble_rms_deg"][ok]),
                    "wobble_max_deg": _stats(s["wobble_max_deg"][ok]),
                    "tip_sway_rms_mm": _stats(s["tip_sway_rms_mm"][ok]),
+                   f"last_{MIN_HOLD_S:g}s_rms_deg": _stats(s["last_rms_deg"][ok]),
+                   f"last_{MIN_HOLD_S:g}s_max_deg": _stats(s["last_max_deg"][ok]),
                    "failures": {"never_upright": int(np.sum(~ok & ~s["ever_upright"])),
                                 "upright_then_lost": int(np.sum(~ok & s["ever_upright"])),
                                 "invalid": int(np.sum(~out["valid"][:, -1]))},
                    "mean_abs_torque_Nm": float(np.mean(np.abs(out["action"])) * params.torque_max)}
         rows = {"success": ok, "time_to_upright_s": t_up, "wobble_rms_deg": s["wobble_rms_deg"],
                 "wobble_max_deg": s["wobble_max_deg"], "tip_sway_rms_mm": s["tip_sway_rms_mm"],
+                "last_2s_rms_deg": s["last_rms_deg"], "last_2s_max_deg": s["last_max_deg"],
                 "final_tilt_deg": np.degrees(out["tilt"][:, -1]), "min_tilt_deg": np.degrees(out["tilt"].min(1)),
                 "valid": out["valid"][:, -1]}
         return EvalResult(metrics=metrics, rows=rows,
@@ -193,11 +196,13 @@ class Balance(Environment):
 
     def summary(self, metrics) -> str:
         t, w = metrics["time_to_upright_s"], metrics["wobble_rms_deg"]
+        last = metrics[f"last_{MIN_HOLD_S:g}s_max_deg"]
         f = metrics["failures"]
         return (f"eval on {metrics['n_episodes']} episodes: success {100 * metrics['success_rate']:.1f}%, time to "
-                f"upright median {t['median']:.2f} s (max {t['max']:.2f}), wobble rms median {w['median']:.2f} deg "
-                f"(max tilt once upright {metrics['wobble_max_deg']['max']:.2f} deg); failures: never upright "
-                f"{f['never_upright']}, upright then lost {f['upright_then_lost']}, invalid {f['invalid']}")
+                f"upright median {t['median']:.2f} s (max {t['max']:.2f}), wobble rms median {w['median']:.2f} deg, "
+                f"max tilt in the last {MIN_HOLD_S:g} s median {last['median']:.2f} deg (max {last['max']:.2f}); "
+                f"failures: never upright {f['never_upright']}, upright then lost {f['upright_then_lost']}, "
+                f"invalid {f['invalid']}")
 
     def figures(self, params: BalanceParams, result: EvalResult, out: Path) -> list[Path]:
         return figures.evaluation_figures(result.extra, out)
@@ -236,6 +241,8 @@ def upright_summary(tilt_rad: np.ndarray, valid: np.ndarray, tip: np.ndarray, dt
     for at least ``MIN_HOLD_S``; ``time_to_upright_s``: the end of the first step of that
     final upright stretch (NaN without one); ``wobble_rms_deg`` / ``wobble_max_deg``: the
     tilt over it, ``tip_sway_rms_mm``: the rms of the tip's horizontal position over it;
+    ``last_rms_deg`` / ``last_max_deg``: the tilt over the last ``MIN_HOLD_S`` (the final
+    stretch's maximum is below ``upright_deg`` by its definition; this is the settled wobble);
     ``ever_upright``: the tilt went below ``upright_deg`` at some step.
     """
     n, T = tilt_rad.shape
@@ -251,8 +258,10 @@ def upright_summary(tilt_rad: np.ndarray, valid: np.ndarray, tip: np.ndarray, dt
     rms = np.where(start < T, np.sqrt(np.sum(np.where(mask, deg, 0.0) ** 2, 1) / count), np.nan)
     mx = np.where(start < T, np.max(np.where(mask, deg, -np.inf), 1), np.nan)
     sway = np.where(start < T, 1e3 * np.sqrt(np.sum(np.where(mask, tip[..., 0], 0.0) ** 2, 1) / count), np.nan)
+    last = deg[:, T - int(round(MIN_HOLD_S / dt)):]
     return {"success": success, "time_to_upright_s": t_up, "wobble_rms_deg": rms, "wobble_max_deg": mx,
-            "tip_sway_rms_mm": sway, "ever_upright": up.any(1)}
+            "tip_sway_rms_mm": sway, "last_rms_deg": np.sqrt(np.mean(last**2, 1)), "last_max_deg": last.max(1),
+            "ever_upright": up.any(1)}
 
 
 def rollout(env: Balance, params: BalanceParams, policy: Policy, keys: jax.Array, record_q: bool = False) -> dict:
