@@ -41,15 +41,19 @@ PAPER_ARM = dict(
     tip_force=0.0,  # N, constant force on the tip along world -y
     tip_mass=0.0,  # kg, inertial point mass at the tip (also weighed by gravity)
     tendon_offset=None,  # m, straight tendon at this offset (local +y); None = no tendon
+    base="prescribed",  # the base joint: "prescribed" (position control) or "torque" (a joint_force input)
 )
 
 
 def paper_arm(**overrides: Any) -> Robot:
-    """The paper's planar arm: a revolute base (prescribed) and a soft link
-    bending about z with ``n_modes`` polynomial curvature terms.
+    """The paper's planar arm: a revolute base and a soft link bending about z with
+    ``n_modes`` polynomial curvature terms.
 
     q = (theta, q_1, ..., q_n_modes); theta = 0 hangs the arm along -y, theta =
-    pi/2 points it along +x. Curvature kappa(s) = sum_k q_k (s/L)^k / L.
+    pi/2 points it along +x, theta = pi stands it upright. Curvature kappa(s) =
+    sum_k q_k (s/L)^k / L. ``base="prescribed"`` (the paper's) moves the base by a
+    given law (``simulate``'s ``base_angle``); ``base="torque"`` leaves it free,
+    driven by ``simulate``'s ``joint_force`` (N m, ``robot.actuated == (0,)``).
     Keyword overrides (SI units): see ``PAPER_ARM``.
     """
     unknown = sorted(set(overrides) - set(PAPER_ARM))
@@ -66,6 +70,7 @@ def paper_arm(**overrides: Any) -> Robot:
     require(p["n_gauss"] >= p["n_modes"], "n_gauss", p["n_gauss"],
             f">= n_modes={p['n_modes']} so that the stiffness is integrated exactly")
     require(p["basis"] in ("monomial", "legendre"), "basis", p["basis"], "'monomial' or 'legendre'")
+    require(p["base"] in ("prescribed", "torque"), "base", p["base"], "'prescribed' or 'torque'")
     tendons: tuple[Tendon, ...] = ()
     if p["tendon_offset"] is not None:
         finite("tendon_offset", p["tendon_offset"])
@@ -89,7 +94,7 @@ def paper_arm(**overrides: Any) -> Robot:
         masses=(PointMass(mass=p["tip_mass"], link=0, X=1.0),),
         tendons=tendons,
         base_rotation=HANGING,
-        prescribed=(0,),
+        prescribed=(0,) if p["base"] == "prescribed" else (),
     )
     check_robot(robot)
     return robot
