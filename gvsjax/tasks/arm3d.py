@@ -29,6 +29,14 @@ LINEAR_SCALE = 0.05  # stretch and shear coefficients / this
 RATE_FACTOR = 10.0  # rates are observed / (10 1/s x the coordinate's scale)
 Q_BOUND = 50.0  # beyond |q| / scale = 50 a state is treated as diverged (curvature > 150 / m)
 QD_BOUND = 1e3
+# PPO settings of the tasks on this arm (each task adds its number of episodes): separate 256-256 tanh
+# actor and critic, one 20-step rollout of 512 envs per update
+PPO_DEFAULTS: dict[str, Any] = dict(
+    network="separate", actor_hidden=(256, 256), critic_hidden=(256, 256), activation="tanh",
+    num_envs=512, num_steps=20, num_minibatches=8, update_epochs=4, gamma=0.98, gae_lambda=0.95,
+    learning_rate=3e-4, clip_eps=0.2, ent_coef=0.0, init_log_std=-1.0, anneal_lr=True,
+    finetune_fraction=0.0, max_grad_norm=0.5,
+)
 
 
 @struct.dataclass
@@ -108,5 +116,5 @@ def rest(robot: Robot) -> tuple[jax.Array, jax.Array]:
     return jnp.zeros(n), jnp.zeros(n)
 
 
-__all__: list[Any] = ["ArmParams", "with_sim_dtype", "n_actions", "check", "tensions", "advance", "coordinate_scales",
-                      "arm_features", "healthy", "rest"]
+__all__: list[Any] = ["PPO_DEFAULTS", "ArmParams", "with_sim_dtype", "n_actions", "check", "tensions", "advance",
+                      "coordinate_scales", "arm_features", "healthy", "rest"]

@@ -87,12 +87,7 @@ class ReachPose(Environment):
     episode_length = 20
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
-    ppo_defaults = dict(
-        network="separate", actor_hidden=(256, 256), critic_hidden=(256, 256), activation="tanh",
-        num_envs=512, num_steps=20, num_minibatches=8, update_epochs=4, gamma=0.98, gae_lambda=0.95,
-        learning_rate=3e-4, clip_eps=0.2, ent_coef=0.0, init_log_std=-1.0, anneal_lr=True,
-        finetune_fraction=0.0, max_grad_norm=0.5, total_episodes=100_000,
-    )
+    ppo_defaults = {**arm3d.PPO_DEFAULTS, "total_episodes": 100_000}
 
     def default_params(self) -> ReachPoseParams:
         """The held-out table (``EVAL_POSES`` poses): what evaluation walks through."""
