@@ -72,6 +72,18 @@ def check(arm: ArmParams) -> None:
         raise ValueError("ArmParams.robot must be a gv.soft_arm(...): one soft link and groups of four tendons")
 
 
+def check_task(env: Any, arm: ArmParams, episode_steps: int, other_obs: int) -> None:
+    """``arm`` is a ``gv.soft_arm`` that fits task ``env``: its action size, its observation of
+    ``6 + 2 n_dofs + other_obs`` entries and its episode length."""
+    check(arm)
+    robot = arm.robot
+    n = (env.obs_size - 6 - other_obs) // 2
+    if n_actions(robot) != env.action_size or robot.n_dofs != n or episode_steps != env.episode_length:
+        raise ValueError(f"{env.name}'s arm has two tendon groups and {n} strain coordinates (got "
+                         f"{len(robot.tendons)} tendons, {robot.n_dofs} coordinates) and episode_steps="
+                         f"{env.episode_length} (got {episode_steps})")
+
+
 def tensions(action: jax.Array, arm: ArmParams) -> jax.Array:
     """Actions (..., 2 g) in [-1, 1] (clipped) -> tensions (..., 4 g) N, >= 0."""
     a = jnp.clip(action, -1.0, 1.0) * arm.tension_max
@@ -116,5 +128,5 @@ def rest(robot: Robot) -> tuple[jax.Array, jax.Array]:
     return jnp.zeros(n), jnp.zeros(n)
 
 
-__all__: list[Any] = ["PPO_DEFAULTS", "ArmParams", "with_sim_dtype", "n_actions", "check", "tensions", "advance",
-                      "coordinate_scales", "arm_features", "healthy", "rest"]
+__all__: list[Any] = ["PPO_DEFAULTS", "ArmParams", "with_sim_dtype", "n_actions", "check", "check_task", "tensions",
+                      "advance", "coordinate_scales", "arm_features", "healthy", "rest"]

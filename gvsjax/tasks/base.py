@@ -241,6 +241,27 @@ class Environment:
         raise ValueError(f"task={self.name!r} has no animation")
 
 
+def record_episodes(env: Environment, params, policy: Policy, keys: jax.Array,
+                    record: Callable[[PyTree, dict], dict]) -> tuple[PyTree, dict]:
+    """Episodes from ``reset(keys[i])`` under ``policy`` for ``episode_length`` steps; jittable.
+
+    Step t's key of episode i is ``fold_in(keys[i], t)``. Returns the first state (batched) and,
+    per step, ``record(state, info)``'s arrays plus ``valid`` (no invalid step so far), each
+    (n, T, ...). Episodes are not reset when ``done``: closed-loop tasks run a fixed length.
+    """
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
+
+    def one(carry, t):
+        obs, s, alive = carry
+        obs, s, _, _, info = step(jax.vmap(lambda k: jax.random.fold_in(k, t))(keys), s, policy(obs), params)
+        alive = alive & info["valid"]
+        return (obs, s, alive), {**record(s, info), "valid": alive}
+
+    _, rec = jax.lax.scan(one, (obs, state, jnp.ones(keys.shape[0], bool)), jnp.arange(env.episode_length))
+    return state, {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
+
+
 def _rollout_returns(env: Environment, params, policy: Policy, n: int, seed: int):
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
 

@@ -37,7 +37,7 @@ from gvsjax.model import SoftLink
 from gvsjax.simulation import simulate
 from gvsjax.tasks.balance import figures
 from gvsjax.tasks.balance.params import BalanceParams
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, bounded, sanitize_action
+from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, bounded, record_episodes, sanitize_action
 
 Q_BOUND = 50.0  # |curvature coefficient| (1/m) beyond which a state is treated as diverged
 QD_BOUND = 1e3  # rad/s or 1/(m s)
@@ -270,22 +270,11 @@ def rollout(env: Balance, params: BalanceParams, policy: Policy, keys: jax.Array
     Returns per control step (n, T): ``tilt`` (rad), ``valid`` (so far), ``action`` (clipped),
     ``tip`` (n, T, 3), and with ``record_q`` the coordinates ``q`` (n, T + 1, 3), the first the start.
     """
-    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
-    q0 = state.q
+    def record(state, info):
+        rec = {"tilt": info["tilt"], "action": state.action, "tip": state.tip}
+        return {**rec, "q": state.q} if record_q else rec
 
-    def one(carry, t):
-        obs, state, alive = carry
-        step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(keys)
-        obs, state, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(step_keys, state, policy(obs), params)
-        alive = alive & info["valid"]
-        rec = {"tilt": info["tilt"], "valid": alive, "action": state.action, "tip": state.tip}
-        if record_q:
-            rec["q"] = state.q
-        return (obs, state, alive), rec
-
-    init = (obs, state, jnp.ones(keys.shape[0], bool))
-    _, rec = jax.lax.scan(one, init, jnp.arange(env.episode_length))
-    rec = {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
+    first, rec = record_episodes(env, params, policy, keys, record)
     if record_q:
-        rec["q"] = jnp.concatenate([q0[:, None], rec["q"]], 1)
+        rec["q"] = jnp.concatenate([first.q[:, None], rec["q"]], 1)
     return rec

@@ -100,15 +100,9 @@ class ReachPose(Environment):
         return make_params(TRAIN_POSES, TRAIN_SEED)
 
     def _check(self, params: ReachPoseParams) -> None:
-        arm3d.check(params.arm)
-        robot = params.arm.robot
         if params.position is None:
             raise ValueError("params has no target table; build it with gvsjax.tasks.reach_pose.make_params(...)")
-        if (arm3d.n_actions(robot) != self.action_size or robot.n_dofs != (self.obs_size - 22) // 2
-                or params.episode_steps != self.episode_length):
-            raise ValueError(f"reach_pose's arm has two tendon groups and {(self.obs_size - 22) // 2} strain "
-                             f"coordinates (got {len(robot.tendons)} tendons, {robot.n_dofs} coordinates) and "
-                             f"episode_steps={self.episode_length} (got {params.episode_steps})")
+        arm3d.check_task(self, params.arm, params.episode_steps, other_obs=16)
 
     def with_sim_dtype(self, params: ReachPoseParams, sim_dtype: str) -> ReachPoseParams:
         return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))

@@ -29,7 +29,7 @@ from flax import struct
 
 from gvsjax.kinematics import tip_state
 from gvsjax.tasks import arm3d
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, sanitize_action
+from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.track3d import figures
 from gvsjax.tasks.track3d.params import Track3DParams
 from gvsjax.tasks.track3d.target import move, start
@@ -80,13 +80,7 @@ class Track3D(Environment):
         return Track3DParams()
 
     def _check(self, params: Track3DParams) -> None:
-        arm3d.check(params.arm)
-        robot = params.arm.robot
-        if (arm3d.n_actions(robot) != self.action_size or robot.n_dofs != (self.obs_size - 16) // 2
-                or params.episode_steps != self.episode_length):
-            raise ValueError(f"track3d's arm has two tendon groups and {(self.obs_size - 16) // 2} strain "
-                             f"coordinates (got {len(robot.tendons)} tendons, {robot.n_dofs} coordinates) and "
-                             f"episode_steps={self.episode_length} (got {params.episode_steps})")
+        arm3d.check_task(self, params.arm, params.episode_steps, other_obs=10)
 
     def with_sim_dtype(self, params: Track3DParams, sim_dtype: str) -> Track3DParams:
         return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))
@@ -187,22 +181,12 @@ def rollout(env: Track3D, params: Track3DParams, policy: Policy, keys: jax.Array
     (n, T, 3), and with ``record_q`` the coordinates ``q`` (n, T + 1, n_dofs), the first
     the rest state.
     """
-    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    def record(state, info):
+        rec = {"distance": info["distance"], "tip": state.tip, "target": state.target}
+        return {**rec, "q": state.q} if record_q else rec
 
-    def one(carry, t):
-        obs, state, alive = carry
-        step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(keys)
-        obs, state, _, _, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(step_keys, state, policy(obs), params)
-        alive = alive & info["valid"]
-        rec = {"distance": info["distance"], "valid": alive, "tip": state.tip, "target": state.target}
-        if record_q:
-            rec["q"] = state.q
-        return (obs, state, alive), rec
-
-    init = (obs, state, jnp.ones(keys.shape[0], bool))
-    _, rec = jax.lax.scan(one, init, jnp.arange(env.episode_length))
-    rec = {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
+    first, rec = record_episodes(env, params, policy, keys, record)
     if record_q:
-        rec["q"] = jnp.concatenate([state.q[:, None], rec["q"]], 1)
-        rec["target"] = jnp.concatenate([state.target[:, None], rec["target"]], 1)
+        rec["q"] = jnp.concatenate([first.q[:, None], rec["q"]], 1)
+        rec["target"] = jnp.concatenate([first.target[:, None], rec["target"]], 1)
     return rec
