@@ -188,6 +188,15 @@ def _columns(raw: np.ndarray, inv_length, dtype) -> list[tuple]:
                   for r in range(6)) for k in range(raw.shape[2])]
 
 
+def _rows(pt: Point, base: np.ndarray, n: int):
+    """A stacked point's (R, p, J, eta) at grid rows ``base``, as (n_c,) scalars and n Jacobian columns."""
+    sel = lambda x: 0 if lie.is_zero(x) else lie.as_array(x)[base]  # noqa: E731
+    R = tuple(tuple(sel(a) for a in row) for row in pt.R)
+    J = [zeros(6) if pt.cols[k] < 0 else
+         tuple(0 if lie.is_zero(Jr) else lie.as_array(Jr)[base, pt.cols[k]] for Jr in pt.J) for k in range(n)]
+    return R, tuple(sel(a) for a in pt.p), J, tuple(sel(a) for a in pt.eta)
+
+
 def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, qd):
     """Pose, twist and Jacobian at every contact sample of soft link ``li``, each sample one
     Magnus step (as ``kinematics._soft_link``'s) from the grid point before it, all samples at
@@ -198,11 +207,14 @@ def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q,
     base = np.clip(np.searchsorted(grid.X, Xc, side="right") - 1, 0, len(grid.X) - 1)
     dX = Xc - grid.X[base]
     grid_pts = [pt for pt in points if pt.link == li and pt.kind == "soft"]
-    pick = [grid_pts[i] for i in base]
-    R = tuple(tuple(_stack([pt.R[a][b] for pt in pick], n_c) for b in range(3)) for a in range(3))
-    p = tuple(_stack([pt.p[a] for pt in pick], n_c) for a in range(3))
-    eta = tuple(_stack([pt.eta[a] for pt in pick], n_c) for a in range(6))
-    J = [tuple(_stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
+    if grid_pts[0].rows:  # a scanned link: one stacked point, its rows the grid points
+        R, p, J, eta = _rows(grid_pts[0], base, robot.n_dofs)
+    else:
+        pick = [grid_pts[i] for i in base]
+        R = tuple(tuple(_stack([pt.R[a][b] for pt in pick], n_c) for b in range(3)) for a in range(3))
+        p = tuple(_stack([pt.p[a] for pt in pick], n_c) for a in range(3))
+        eta = tuple(_stack([pt.eta[a] for pt in pick], n_c) for a in range(6))
+        J = [tuple(_stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
     j0, s0, end = robot.dof_slices()[li]
     qs, qds = q[s0:end], qd[s0:end]
     dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *qds, *p)))  # float32 runs stay float32

@@ -222,3 +222,26 @@ def test_float32_run_with_contact_stays_float32_and_matches_float64():
     assert runs[0].contact_gap.dtype == jnp.float32 and runs[0].q.dtype == jnp.float32
     assert float(runs[1].contact_gap[-1, -1]) < 0  # the tip has reached the plane
     np.testing.assert_allclose(np.asarray(runs[0].contact_gap), np.asarray(runs[1].contact_gap), atol=2e-6)
+
+
+# ----------------------------------------------------------------------------
+# a soft link visited by lax.scan touches as the unrolled one
+
+
+def test_a_scanned_link_touches_as_the_unrolled_one():
+    """The same bent arm against a bar and a ball, its kinematics scanned or unrolled: the same
+    contact forces, gaps and motion (the samples are read from the scan's stacked points)."""
+    obstacles = (gv.Capsule(start=(0.12, -0.3, 0.6), end=(0.12, 0.3, 0.6), radius=0.03),
+                 gv.Sphere(centre=(-0.1, 0.0, 0.9), radius=0.1))
+    q0 = jnp.asarray(np.random.default_rng(0).normal(size=5)) * 0.3
+    qd0 = jnp.asarray(np.random.default_rng(1).normal(size=5))
+    out = {}
+    for recursion in ("scan", "unrolled"):
+        arm = gv.soft_arm(bending_order=1, stretch_order=-1, n_gauss=2, recursion=recursion)
+        robot = arm.replace(contact=gv.Contact(obstacles=obstacles, n_points=11))
+        force, gap = contact.report(robot, q0, qd0, 0.0)
+        tr = gv.simulate(robot, 0.02, n_steps=20, q0=q0, qd0=qd0, integrator="rk4", check_stability=False)
+        out[recursion] = (np.asarray(force), np.asarray(gap), np.asarray(tr.q[-1]))
+    assert out["scan"][1].min() < -1e-3 and np.abs(out["scan"][0]).max() > 10.0  # pressing
+    for a, b in zip(out["scan"], out["unrolled"]):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
