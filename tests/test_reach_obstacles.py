@@ -1,0 +1,158 @@
+"""reach_obstacles: the layout against its geometry and the statics, the env's contact dynamics
+against Newton's statics with the same obstacles, the scene's symmetry, the env under jit/vmap,
+bad input, the evaluation's statistics and figures."""
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import capture_figures, finite_line
+
+import gvsjax as gv
+from gvsjax.tasks import arm3d, make
+from gvsjax.tasks import reach_obstacles as ro
+from gvsjax.tasks.reach_obstacles.env import final_summary
+from gvsjax.tasks.reach_obstacles.layouts import turn
+
+
+@pytest.fixture(scope="module")
+def env():
+    return make("reach_obstacles")
+
+
+@pytest.fixture(scope="module")
+def params(env):
+    return env.default_params()
+
+
+def _segment_distance(P, a, b):
+    e = b - a
+    t = np.clip((P - a) @ e / (e @ e), 0.0, 1.0)
+    return np.linalg.norm(P - (a + t[:, None] * e), axis=-1)
+
+
+def test_the_cage_is_a_cube_around_the_target_that_the_reference_equilibrium_enters():
+    """Twelve edges of length 2 h whose midpoints are the cube's 12 edge midpoints; the rest arm
+    stands clear; the statics of the reference action (no contact) put the tip within 3.1 cm of
+    the target with the whole arm >= 10 cm clear of every bar."""
+    lay = ro.cage()
+    c, h = np.array(ro.layouts.CAGE_TARGET), ro.layouts.CAGE_HALF
+    np.testing.assert_allclose(np.linalg.norm(lay["end"] - lay["start"], axis=1), 2 * h, rtol=1e-12)
+    mids = (lay["start"] + lay["end"]) / 2 - c
+    assert sorted(np.round(np.sort(np.abs(mids), axis=1), 12).tolist()) == [[0.0, h, h]] * 12
+    assert len({tuple(np.round(m, 9)) for m in mids}) == 12
+    arm = arm3d.ArmParams()
+    eq = gv.equilibrium(arm.robot, tendon_force=arm3d.tensions(jnp.asarray(ro.ReachObstacles.reference_action), arm),
+                        load_scale_steps=4)
+    assert bool(eq.converged)
+    for q, label in ((np.zeros(arm.robot.n_dofs), "rest"), (np.asarray(eq.q), "reference")):
+        pts = np.asarray(gv.backbone(arm.robot, jnp.asarray(q)))
+        clear = min(_segment_distance(pts, a, b).min() - r for a, b, r in zip(lay["start"], lay["end"], lay["radius"]))
+        assert clear - arm.robot.links[0].radius > 0.1, (label, clear)
+    assert np.linalg.norm(pts[-1] - c) < 0.031
+
+
+def test_turn_is_a_rotation_about_the_vertical():
+    x = jnp.array([[0.8, 0.0, 0.35], [0.1, -0.2, 0.3]])
+    np.testing.assert_allclose(np.asarray(turn(x, math.pi / 2)), [[0.0, 0.8, 0.35], [0.2, 0.1, 0.3]], atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(turn(x, 0.7)), axis=1), np.linalg.norm(x, axis=1), rtol=1e-14)
+
+
+def _held_episode(env, params, n_steps):
+    """Three episodes under the held reference action: the fixed scene, the scene turned by 90 deg,
+    and the fixed scene with a NaN first action. Returns the last (obs, state, reward, info) and
+    the first step's info and reward."""
+    keys = jax.random.split(jax.random.PRNGKey(0), 3)
+    _, state = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
+    yaw = jnp.array([0.0, math.pi / 2, 0.0])
+    state = dataclasses.replace(state, yaw=yaw, target=turn(jnp.asarray(params.target)[None].repeat(3, 0), yaw))
+    policy = ro.held_policy(env)
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    first = None
+    for t in range(n_steps):
+        action = policy(jax.vmap(ro.env.observe, in_axes=(0, None))(state, params))
+        obs, state, reward, done, info = step(keys, state, action.at[2].set(jnp.nan) if t == 0 else action, params)
+        first = first or (info, reward)
+    return obs, state, reward, info, first
+
+
+@pytest.mark.slow
+def test_the_scene_turns_symmetrically_under_jit_and_vmap_and_the_reward_is_as_documented(env, params):
+    """The tendons sit at quarters, so a scene turned by 90 deg gives the same episode turned (the
+    yaw, the turned layout and the turned held action all enter). Also: jit(vmap) of reset/step,
+    the reward's formula while pressing a bar, a NaN action flagged while the batch runs on."""
+    obs, state, reward, info, (info0, reward0) = _held_episode(env, params, 6)
+    assert np.asarray(info0["valid"]).tolist() == [True, True, False] and float(reward0[2]) == 0.0
+    np.testing.assert_allclose(np.asarray(info["distance"][1]), np.asarray(info["distance"][0]), rtol=1e-7)
+    np.testing.assert_allclose(np.asarray(info["depth"][1]), np.asarray(info["depth"][0]), rtol=1e-5, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(turn(state.tip[0], math.pi / 2)), np.asarray(state.tip[1]), atol=1e-7)
+    depth, d = float(info["depth"][0]), float(info["distance"][0])
+    assert depth > 0.002  # the arm presses the cage's top bar
+    shaped = 0.5 * (np.exp(-params.k * d) + np.exp(-params.precision * params.k * d))
+    np.testing.assert_allclose(float(reward[0]), shaped - params.penetration_weight * min(depth / params.tolerance, 2),
+                               rtol=1e-10)
+    assert obs.shape == (3, env.obs_size) and np.all(np.isfinite(np.asarray(obs)))
+
+
+@pytest.mark.extended
+def test_held_action_comes_to_rest_on_newtons_statics_with_the_same_obstacles(env, params):
+    """Under the held reference action the arm swings into the cage's top bar and stays on it. The
+    env (16 ars443 steps per 0.1 s, the contact explicit) must come to rest where Newton's statics
+    with the same obstacles (the contact forces in the residual) put it."""
+    _, state, _, _, _ = _held_episode(env, params, 60)  # 6 s
+    robot = ro.scene(params, 0.0).robot
+    arm = dataclasses.replace(params.arm, robot=robot)
+    eq = gv.equilibrium(robot, tendon_force=arm3d.tensions(jnp.asarray(env.reference_action), arm),
+                        load_scale_steps=8)
+    assert bool(eq.converged)
+    tip_eq = np.asarray(gv.backbone(robot, eq.q))[-1]
+    tip_dyn = np.asarray(gv.backbone(robot, state.q[0]))[-1]
+    assert np.linalg.norm(tip_eq - tip_dyn) < 2e-3, (tip_eq, tip_dyn)
+    assert float(jnp.min(ro.env.gaps(params, 0.0, eq.q, jnp.zeros_like(eq.q)))) < -1e-3  # resting on the bar
+
+
+def test_bad_input_is_refused_before_compiling(env, params):
+    key = jax.random.PRNGKey(0)
+    with pytest.raises(ValueError, match="contact samples"):
+        env.reset(key, dataclasses.replace(params, arm=arm3d.ArmParams(robot=ro.contact_arm().replace(
+            contact=ro.contact_arm().contact.replace(n_points=21)))))
+    with pytest.raises(ValueError, match="start, end and radius"):
+        env.reset(key, dataclasses.replace(params, radius=jnp.ones(3)))
+    with pytest.raises(ValueError, match="yaw_range"):
+        env.reset(key, dataclasses.replace(params, yaw_range=-1.0))
+    with pytest.raises(ValueError, match="tendon groups"):
+        env.reset(key, dataclasses.replace(params, arm=arm3d.ArmParams(robot=ro.contact_arm(tendon_ends=(1.0,)))))
+    _, state = env.reset(key, params)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(key, state, jnp.zeros(3), params)
+
+
+def test_final_summary_counts_divergence_and_deep_penetration_as_failures(params):
+    out = {"distance": np.array([[0.5, 0.01], [0.5, 0.02], [0.5, 0.03], [0.5, 0.3]]),
+           "depth": np.array([[0.0, 0.0], [0.02, 0.0], [0.0, 0.0], [0.0, 0.0]]),
+           "valid": np.array([[True, True], [True, True], [True, False], [True, True]])}
+    s = final_summary(out, params)
+    assert s["success"] == 0.25 and s["reached"] == 0.5 and s["penetrated"] == 0.25
+    assert s["distance_median_m"] == pytest.approx(0.16) and math.isinf(s["distance_p95_m"])
+
+
+def test_figures_draw_the_medians_and_the_obstacles(params, monkeypatch, tmp_path):
+    rng = np.random.default_rng(0)
+    n, T = 5, 30
+    out = lambda: {"distance": rng.uniform(0.01, 0.5, (n, T)), "depth": rng.uniform(0, 0.02, (n, T)),  # noqa: E731
+                   "valid": np.ones((n, T), bool), "q": np.zeros((n, T + 1, 9)),
+                   "target": np.tile(np.asarray(params.target), (n, 1)), "yaw": np.zeros(n)}
+    pol, held = out(), out()
+    figs = capture_figures(monkeypatch)
+    paths = ro.figures.evaluation_figures(params, {"policy": pol, "held_action": held, "dt": 0.1}, tmp_path)
+    assert [p.name for p in paths] == ["reach_obstacles_over_time.png", "reach_obstacles_final.png"]
+    lines = figs["reach_obstacles_over_time.png"]
+    line = finite_line([ln for ln in lines if ln["axes"] == 0], "policy, median", min_points=T)
+    np.testing.assert_allclose(line["y"], 100 * np.median(pol["distance"], 0))
+    line = finite_line([ln for ln in lines if ln["axes"] == 1], "reference action, held, median", min_points=T)
+    np.testing.assert_allclose(line["y"], 1000 * np.median(held["depth"], 0))
+    bars = [ln for ln in figs["reach_obstacles_final.png"] if ln["axes"] == 0 and ln["x"].size == 2]
+    assert len(bars) >= 12  # the cage's bars (the arm's lines have more points)
