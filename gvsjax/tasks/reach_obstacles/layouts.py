@@ -10,11 +10,14 @@ asks for the same skill in another direction.
 Two layouts are built in, both with the target to the side of the upright arm,
 near the edge of what it can reach at rest:
 
-* ``cage``: twelve bars of radius 3 cm, the edges of a cube of side 0.5 m,
-  around the target (0.8, 0, 0.35) m. The arm at rest stands clear of it; the
-  equilibrium that reaches the target passes through the cube's near face; the
-  arm cannot swing straight there, its upper part would sweep through the
-  cube's top edge.
+* ``cage``: twelve bars of radius 3 cm around the target (0.8, 0, 0.35) m:
+  eleven edges of a cube of side 0.5 m (open at the top edge of the face
+  towards the base, where the arm comes in: with that edge the tendon arm
+  cannot thread the face at all) and a bar across the bottom under the target.
+  The arm at rest stands clear of it; the equilibrium that reaches the target
+  passes through the cube's near face >= 14 cm from every bar, and so does the
+  way there when the action is raised slowly; applied at once, the swing
+  overshoots into the bars.
 * ``posts``: six bars of radius 0.1 m across the x-z plane (circles in that
   plane) under, beyond and above the target (0.8, 0, 0.15) m, for the planar
   task. The quasi-static ways there stay >= 6 cm clear of them; a fast swing
@@ -49,7 +52,9 @@ N_POINTS = 11  # contact samples along the arm, 10 cm apart (straight pieces: 1.
 
 
 def cage(centre=CAGE_TARGET, half: float = CAGE_HALF, radius: float = CAGE_RADIUS) -> dict[str, np.ndarray]:
-    """The twelve edges of the cube of half-side ``half`` about ``centre`` (m) as capsules."""
+    """Twelve capsules about ``centre`` (m): eleven edges of the cube of half-side ``half`` (all but
+    the top edge of the face towards the base, where the arm comes in) and a bar across the bottom
+    face under the centre."""
     c = np.asarray(centre, float)
     starts, ends = [], []
     for a in range(3):  # the four edges along axis a
@@ -62,6 +67,8 @@ def cage(centre=CAGE_TARGET, half: float = CAGE_HALF, radius: float = CAGE_RADIU
                 e = s.copy()
                 s[a] -= half
                 e[a] += half
+                if a == 1 and s[0] < c[0] and s[2] > c[2]:  # the near face's top edge (along y): the way in
+                    s, e = c + [0.0, -half, -half], c + [0.0, half, -half]  # becomes a bar under the centre
                 starts.append(s)
                 ends.append(e)
     return {"start": np.array(starts), "end": np.array(ends), "radius": np.full(12, radius)}
