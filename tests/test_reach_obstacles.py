@@ -160,3 +160,34 @@ def test_figures_draw_the_medians_and_the_obstacles(params, monkeypatch, tmp_pat
     np.testing.assert_allclose(line["y"], 1000 * np.median(held["depth"], 0))
     bars = [ln for ln in figs["reach_obstacles_final.png"] if ln["axes"] == 0 and ln["x"].size == 2]
     assert len(bars) >= 12  # the cage's bars (the arm's lines have more points)
+
+
+def test_planar_variant_maps_two_actions_into_the_plane_and_keeps_its_plane():
+    env2 = make("reach_obstacles_2d")
+    p2 = env2.default_params()
+    np.testing.assert_array_equal(np.asarray(env2.full_action(jnp.array([0.3, -0.7]))), [0.3, 0.0, -0.7, 0.0])
+    for seed in range(3):
+        obs, state = env2.reset(jax.random.PRNGKey(seed), p2)
+        assert float(state.target[1]) == 0.0 and abs(float(state.target[0]) - 0.8) <= 0.03
+        assert float(jnp.min(state.gap)) > 0.05  # the posts stand clear of the rest arm
+    with pytest.raises(ValueError, match="yaw_range"):
+        env2.reset(jax.random.PRNGKey(0), dataclasses.replace(p2, yaw_range=0.5))
+    with pytest.raises(ValueError, match="target_jitter"):
+        env2.reset(jax.random.PRNGKey(0), dataclasses.replace(p2, target_jitter=(0.1, -0.1, 0.0)))
+
+
+@pytest.mark.extended
+def test_planar_posts_let_a_slow_approach_through_and_stop_a_swing():
+    """The posts' design claim: the reference action raised over 1.5 s reaches the nominal target
+    without touching; applied at once, the swing presses > 1 cm into a post."""
+    env2 = make("reach_obstacles_2d")
+    p2 = dataclasses.replace(env2.default_params(), target_jitter=(0.0, 0.0, 0.0))
+    a = jnp.asarray(env2.reference_action)[::2]
+
+    def ramp(seconds):
+        return lambda obs: a * jnp.clip((3.0 * (1.0 - obs[..., -1:]) + 0.1) / seconds, 0.0, 1.0)
+
+    slow, fast = (jax.jit(lambda k, s=s: ro.rollout(env2, p2, ramp(s), k))(jax.random.PRNGKey(0)[None])
+                  for s in (1.5, 0.1))
+    assert float(slow["distance"][0, -1]) < 0.05 and float(slow["depth"][0].max()) == 0.0
+    assert float(fast["depth"][0].max()) > 0.01

@@ -85,7 +85,7 @@ def start(key: jax.Array, params: ReachObstaclesParams) -> ReachObstaclesState:
     robot = params.arm.robot
     k_yaw, k_target = jax.random.split(key)
     yaw = params.yaw_range * jax.random.uniform(k_yaw, (), minval=-1.0, maxval=1.0)
-    jitter = params.target_jitter * jax.random.uniform(k_target, (3,), minval=-1.0, maxval=1.0)
+    jitter = jnp.asarray(params.target_jitter) * jax.random.uniform(k_target, (3,), minval=-1.0, maxval=1.0)
     target = turn(jnp.asarray(params.target) + jitter, yaw)
     q, qd = arm3d.rest(robot)
     return ReachObstaclesState(q=q, qd=qd, tip=tip_frame(robot, q)[1], tip_velocity=jnp.zeros(3), target=target,
@@ -147,7 +147,10 @@ class ReachObstacles(Environment):
         shapes = tuple(np.shape(x) for x in (params.start, params.end, params.radius))
         if len(shapes[0]) != 2 or shapes[0][1] != 3 or shapes[1] != shapes[0] or shapes[2] != shapes[0][:1]:
             raise ValueError(f"the layout's start, end and radius must be (m, 3), (m, 3) and (m,); got {shapes}")
-        for name, value, low in (("target_jitter", params.target_jitter, 0.0), ("yaw_range", params.yaw_range, 0.0),
+        jitter = params.target_jitter
+        if isinstance(jitter, (tuple, list)) and not (len(jitter) == 3 and all(float(x) >= 0 for x in jitter)):
+            raise ValueError(f"target_jitter={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
+        for name, value, low in (("yaw_range", params.yaw_range, 0.0),
                                  ("tolerance", params.tolerance, 1e-6), ("success_distance", params.success_distance,
                                                                         1e-6)):
             if isinstance(value, (int, float)) and not value >= low:
@@ -280,4 +283,5 @@ class ReachObstacles2D(ReachObstacles):
 
     def default_params(self) -> ReachObstaclesParams:
         lay = {k: jnp.asarray(v) for k, v in posts().items()}
-        return ReachObstaclesParams(start=lay["start"], end=lay["end"], radius=lay["radius"], target=POSTS_TARGET)
+        return ReachObstaclesParams(start=lay["start"], end=lay["end"], radius=lay["radius"], target=POSTS_TARGET,
+                                    target_jitter=(0.03, 0.0, 0.03))

@@ -35,7 +35,7 @@ class ReachObstaclesParams:
     end: Any = struct.field(default_factory=lambda: _cage()["end"])  # (m, 3) m
     radius: Any = struct.field(default_factory=lambda: _cage()["radius"])  # (m,) m
     target: Any = CAGE_TARGET  # (3,) m, at yaw 0
-    target_jitter: float = 0.03  # m
+    target_jitter: Any = (0.03, 0.03, 0.03)  # m, per coordinate
     yaw_range: float = 0.0  # rad; pi: a scene turned anywhere about the base
     # reward per step: (exp(-k d) + exp(-precision k d)) / 2 - penetration_weight x min(depth / tolerance, 2)
     # the first term pulls from a metre away (0.25 at 70 cm), the second rewards the last centimetres
