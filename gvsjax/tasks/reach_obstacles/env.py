@@ -35,6 +35,7 @@ from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episo
 from gvsjax.tasks.reach_obstacles import figures
 from gvsjax.tasks.reach_obstacles.layouts import POSTS_TARGET, capsules, posts, turn
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
+from gvsjax.validation import concrete
 
 ERROR_GAIN = 10.0  # target minus tip observed in units of 10 cm
 GAP_RANGE = (-0.05, 0.2)  # m, the observed gaps are clipped to this
@@ -148,7 +149,7 @@ class ReachObstacles(Environment):
         if len(shapes[0]) != 2 or shapes[0][1] != 3 or shapes[1] != shapes[0] or shapes[2] != shapes[0][:1]:
             raise ValueError(f"the layout's start, end and radius must be (m, 3), (m, 3) and (m,); got {shapes}")
         jitter = params.target_jitter
-        if isinstance(jitter, (tuple, list)) and not (len(jitter) == 3 and all(float(x) >= 0 for x in jitter)):
+        if concrete(jitter) and not (np.shape(jitter) == (3,) and np.all(np.asarray(jitter, float) >= 0)):
             raise ValueError(f"target_jitter={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
         for name, value, low in (("yaw_range", params.yaw_range, 0.0),
                                  ("tolerance", params.tolerance, 1e-6), ("success_distance", params.success_distance,
