@@ -13,5 +13,6 @@ DEFAULT_TASK = "basketball"  # what the command line and Gymnasium run when no t
 register("basketball", "gvsjax.tasks.basketball:Basketball")
 register("pickplace", "gvsjax.tasks.pickplace:PickPlace")
 register("track3d", "gvsjax.tasks.track3d:Track3D")
+register("track3d_muscle", "gvsjax.tasks.track3d:Track3DMuscle")
 register("reach_pose", "gvsjax.tasks.reach_pose:ReachPose")
 register("balance", "gvsjax.tasks.balance:Balance")

@@ -34,7 +34,7 @@ def reachable_poses(arm: arm3d.ArmParams, n: int, seed: int) -> dict[str, np.nda
     if not (isinstance(n, int) and n >= 1):
         raise ValueError(f"n={n!r} is invalid; expected an int >= 1 (poses in the table)")
     robot = arm.robot
-    actions = jax.random.uniform(jax.random.PRNGKey(seed), (n, arm3d.n_actions(robot)), minval=-1.0, maxval=1.0)
+    actions = jax.random.uniform(jax.random.PRNGKey(seed), (n, arm3d.n_actions(arm)), minval=-1.0, maxval=1.0)
 
     def solve(action):
         eq = equilibrium(robot, tendon_force=arm3d.tensions(action, arm), load_scale_steps=LOAD_STEPS)
