@@ -108,3 +108,36 @@ def test_bad_actuation_is_refused_before_compiling(env):
     _, s = env.reset(jax.random.PRNGKey(0), P)
     with pytest.raises(ValueError, match=r"expected \(12,\)"):
         env.step(jax.random.PRNGKey(0), s, jnp.zeros(4), P)
+
+
+def test_reach_pose_muscle_needs_a_table_of_muscle_actions():
+    """The variant's table is built under muscle actions (12 per pose); a tendon table (4) is refused."""
+    from gvsjax.tasks import reach_pose as rp
+
+    env = make("reach_pose_muscle")
+    assert env.action_size == 12 and env.obs_size == make("reach_pose").obs_size
+    table = dict(position=jnp.zeros((3, 3)), axis=jnp.tile(jnp.array([0.0, 0.0, 1.0]), (3, 1)))
+    muscle = arm3d.ArmParams(actuation="muscle")
+    with pytest.raises(ValueError, match=r"the target table's actions have shape \(3, 4\); reach_pose_muscle takes 12"):
+        env.reset(jax.random.PRNGKey(0), rp.ReachPoseParams(arm=muscle, action=jnp.zeros((3, 4)), **table))
+    with pytest.raises(ValueError, match="reach_pose takes 4 actions, but ArmParams.actuation='muscle'"):
+        make("reach_pose").reset(jax.random.PRNGKey(0), rp.ReachPoseParams(arm=muscle, action=jnp.zeros((3, 4)),
+                                                                           **table))
+
+
+@pytest.mark.extended
+def test_reach_pose_muscle_targets_are_where_held_muscle_actions_settle():
+    """The muscle table's poses (Newton's statics under each pose's 12 held moments) are where the
+    env's dynamics come to rest (a minutes-long compile of the 3D statics with a strain force)."""
+    from gvsjax.tasks import reach_pose as rp
+
+    env = make("reach_pose_muscle")
+    P = rp.make_params(4, 7, actuation="muscle")
+    assert P.action.shape == (4, 12) and P.arm.actuation == "muscle"
+    state = jax.vmap(rp.start, in_axes=(0, None))(jnp.arange(4), P)
+    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    for _ in range(60):
+        _, state, _, _, info = step(keys, state, P.action, P)
+    assert np.all(np.asarray(info["valid"]))
+    assert float(np.max(info["distance"])) < 2e-3 and float(np.max(info["angle_deg"])) < 0.2

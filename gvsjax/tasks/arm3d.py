@@ -46,8 +46,8 @@ class ArmParams:
 
     robot: Robot = struct.field(default_factory=soft_arm)
     tension_max: float = 2000.0  # N per tendon: both groups together bend the tip below the tasks' targets
-    # N m per control point and direction: 2000 N x the tendons' 4 cm lever, the whole-arm tendon's
-    # moment; with gravity it bends the tip to the tasks' lowest targets (experiments/muscle_workspace.py)
+    # N m per control point and direction (muscle actuation): the tendons' static cover of track3d's box;
+    # 80 N m, the whole-arm tendon's 2000 N x 4 cm, covers less (experiments/muscle_workspace.py)
     moment_max: float = 90.0
     actuation: str = struct.field(pytree_node=False, default="tendon")  # "tendon" or "muscle"
     control_dt: float = 0.1  # s between actions
@@ -57,7 +57,7 @@ class ArmParams:
     integrator: str = struct.field(pytree_node=False, default="ars443")
     sim_dtype: str = struct.field(pytree_node=False, default="float64")  # simulate's dtype; the env stays float64
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # the limits are checked when they are numbers (pytrees are also rebuilt from placeholders)
         act.check_actuation(self.actuation, self.tension_max, self.moment_max, strict=False)
 
@@ -88,11 +88,11 @@ def check_task(env: Any, arm: ArmParams, episode_steps: int, other_obs: int) -> 
     check(arm)
     robot = arm.robot
     n = (env.obs_size - 6 - other_obs) // 2
-    if n_actions(arm) != env.action_size:
+    other = dataclasses.replace(arm, actuation="muscle" if arm.actuation == "tendon" else "tendon")
+    if n_actions(arm) != env.action_size and n_actions(other) == env.action_size:
         raise ValueError(f"{env.name} takes {env.action_size} actions, but ArmParams.actuation={arm.actuation!r} "
-                         f"on this arm ({len(robot.tendons)} tendons) makes {n_actions(arm)}; use the task "
-                         "registered for that actuation")
-    if robot.n_dofs != n or episode_steps != env.episode_length:
+                         f"makes {n_actions(arm)}; use the task registered for that actuation")
+    if n_actions(arm) != env.action_size or robot.n_dofs != n or episode_steps != env.episode_length:
         raise ValueError(f"{env.name}'s arm has two tendon groups and {n} strain coordinates (got "
                          f"{len(robot.tendons)} tendons, {robot.n_dofs} coordinates) and episode_steps="
                          f"{env.episode_length} (got {episode_steps})")
