@@ -1,6 +1,7 @@
 """How many integrator steps the 3D tasks need per 0.1 s control step, and the cost of one.
 
-Episodes of ``track3d`` are run with ``n_substeps`` ars443 steps per control
+Episodes of ``track3d`` (or ``--task track3d_muscle``: the same arm under muscle
+moments) are run with ``n_substeps`` ars443 steps per control
 step and with a reference of ``--reference`` steps, under two kinds of actions:
 "random" (uniform in [-1, 1], a new one every control step: an untrained
 policy's jerks, the hardest case) and "held" (uniform, each held for 1 s). The
@@ -9,6 +10,7 @@ over all steps of the episodes (a diverged episode counts as infinite) and the
 env steps per second of a batch.
 
     python experiments/track3d_substeps.py              # ~5 min on 2 cores
+    python experiments/track3d_substeps.py --task track3d_muscle --json benchmarks/track3d_muscle_substeps.json
 """
 
 from __future__ import annotations
@@ -30,12 +32,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def tips(arm, actions):
-    """Tip after each control step of a batch: actions (B, T, 4) -> (B, T, 3)."""
+    """Tip after each control step of a batch: actions (B, T, k) -> (B, T, 3)."""
 
     def one(acts):
         def body(carry, a):
             q, qd = carry
-            tr = arm3d.advance(arm, q, qd, arm3d.tensions(a, arm))
+            tr = arm3d.control_step(arm, q, qd, a)[0]
             return (tr.q[-1], tr.qd[-1]), tr.tip[-1]
 
         return jax.lax.scan(body, arm3d.rest(arm.robot), acts)[1]
@@ -45,6 +47,7 @@ def tips(arm, actions):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--task", default="track3d", help="track3d or track3d_muscle")
     ap.add_argument("--substeps", default="1,2,4,8")
     ap.add_argument("--reference", type=int, default=64)
     ap.add_argument("--episodes", type=int, default=64)
@@ -53,7 +56,7 @@ def main() -> None:
     ap.add_argument("--sim-dtype", default="float64", help="of the runs compared with the float64 reference")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "track3d_substeps.json"))
     args = ap.parse_args()
-    env = make("track3d")
+    env = make(args.task)
     arm = env.default_params().arm
     if args.tension_max:
         arm = dataclasses.replace(arm, tension_max=args.tension_max)
@@ -68,9 +71,9 @@ def main() -> None:
         a = dataclasses.replace(arm, n_substeps=n, sim_dtype=args.sim_dtype)
         err = {k: np.nan_to_num(np.linalg.norm(np.asarray(jax.jit(tips)(a, acts)) - ref[k], axis=-1), nan=np.inf)
                for k, acts in families.items()}
-        step = jax.jit(jax.vmap(lambda q, qd, T, a=a: arm3d.advance(a, q, qd, T).q[-1]))
+        step = jax.jit(jax.vmap(lambda q, qd, u, a=a: arm3d.control_step(a, q, qd, u)[0].q[-1]))
         q = jnp.zeros((args.batch, arm.robot.n_dofs))
-        T = jnp.full((args.batch, len(arm.robot.tendons)), 500.0)
+        T = jnp.full((args.batch, env.action_size), 0.25)  # a quarter of the limit, as 500 N of tension
         t0 = time.perf_counter()
         jax.block_until_ready(step(q, q, T))
         compile_s = time.perf_counter() - t0
@@ -84,7 +87,9 @@ def main() -> None:
                      "compile_s": compile_s, "env_steps_per_s": args.batch / float(np.median(runs))})
         print(rows[-1], flush=True)
     Path(args.json).write_text(json.dumps({"reference_substeps": args.reference, "episodes": args.episodes,
-                                           "tension_max_N": float(arm.tension_max), "batch": args.batch,
+                                           "task": args.task, "actuation": arm.actuation,
+                                           "tension_max_N": float(arm.tension_max),
+                                           "moment_max_Nm": float(arm.moment_max), "batch": args.batch,
                                            "sim_dtype": args.sim_dtype,
                                            "rows": rows}, indent=1))
     print(f"\n| ars443 steps per 0.1 s | random actions: max / p95 tip error | held actions: max / p95 | "

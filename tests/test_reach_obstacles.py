@@ -127,6 +127,8 @@ def test_bad_input_is_refused_before_compiling(env, params):
         env.reset(key, dataclasses.replace(params, radius=jnp.ones(3)))
     with pytest.raises(ValueError, match="yaw_range"):
         env.reset(key, dataclasses.replace(params, yaw_range=-1.0))
+    with pytest.raises(ValueError, match="actuation"):
+        env.reset(key, dataclasses.replace(params, arm=dataclasses.replace(params.arm, actuation="muscle")))
     with pytest.raises(ValueError, match="tendon groups"):
         env.reset(key, dataclasses.replace(params, arm=arm3d.ArmParams(robot=ro.contact_arm(tendon_ends=(1.0,)))))
     _, state = env.reset(key, params)
@@ -151,7 +153,8 @@ def test_figures_draw_the_medians_and_the_obstacles(params, monkeypatch, tmp_pat
                    "target": np.tile(np.asarray(params.target), (n, 1)), "yaw": np.zeros(n)}
     pol, held = out(), out()
     figs = capture_figures(monkeypatch)
-    paths = ro.figures.evaluation_figures(params, {"policy": pol, "held_action": held, "dt": 0.1}, tmp_path)
+    robots = [ro.scene(params, 0.0).robot] * 3
+    paths = ro.figures.evaluation_figures(params, {"policy": pol, "held_action": held, "dt": 0.1}, tmp_path, robots)
     assert [p.name for p in paths] == ["reach_obstacles_over_time.png", "reach_obstacles_final.png"]
     lines = figs["reach_obstacles_over_time.png"]
     line = finite_line([ln for ln in lines if ln["axes"] == 0], "policy, median", min_points=T)

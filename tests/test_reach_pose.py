@@ -131,4 +131,4 @@ def test_evaluation_figures_draw_the_curves(tmp_path, monkeypatch):
 
 def test_arm_actions_are_shared_with_track3d(env):
     """Both 3D tasks act on the same arm the same way (one implementation in arm3d)."""
-    assert env.action_size == make("track3d").action_size == arm3d.n_actions(gv.soft_arm())
+    assert env.action_size == make("track3d").action_size == arm3d.n_actions(arm3d.ArmParams())

@@ -134,7 +134,10 @@ class ReachObstacles(Environment):
 
     def _check(self, params: ReachObstaclesParams) -> None:
         arm3d.check(params.arm)
-        if arm3d.n_actions(params.arm.robot) != 4 or params.arm.robot.n_dofs != 9 or params.episode_steps != 30:
+        if params.arm.actuation != "tendon":
+            raise ValueError(f"ArmParams.actuation={params.arm.actuation!r} is invalid for {self.name}; expected "
+                             "'tendon' (its actions are the tendon groups')")
+        if arm3d.n_actions(params.arm) != 4 or params.arm.robot.n_dofs != 9 or params.episode_steps != 30:
             raise ValueError(f"{self.name}'s arm is gv.soft_arm's default (two tendon groups, 9 strain coordinates) "
                              f"and episode_steps=30; got {len(params.arm.robot.tendons)} tendons, "
                              f"{params.arm.robot.n_dofs} coordinates, episode_steps={params.episode_steps}")
@@ -226,7 +229,8 @@ class ReachObstacles(Environment):
         return f"eval on {metrics['n_episodes']} episodes: " + "; ".join(parts)
 
     def figures(self, params: ReachObstaclesParams, result: EvalResult, out: Path) -> list[Path]:
-        return figures.evaluation_figures(params, result.extra, out)
+        yaws = result.extra["policy"]["yaw"][:3]
+        return figures.evaluation_figures(params, result.extra, out, [scene(params, y).robot for y in yaws])
 
     # ------------------------------------------------------------------ drawing
 

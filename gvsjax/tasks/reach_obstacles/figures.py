@@ -59,12 +59,11 @@ def final_arms(robots: list[Robot], q_final: np.ndarray, targets: np.ndarray, su
     return plots.save(fig, path)
 
 
-def evaluation_figures(params, extra: dict, out: Path) -> list[Path]:
-    """The figures of an evaluation (``ReachObstacles.evaluate``'s ``extra``)."""
-    from gvsjax.tasks.reach_obstacles.env import scene
+def evaluation_figures(params, extra: dict, out: Path, robots: list[Robot]) -> list[Path]:
+    """The figures of an evaluation (``ReachObstacles.evaluate``'s ``extra``); ``robots``: the
+    first episodes' arms with their (turned) obstacles, one per episode drawn."""
     pol, held = extra["policy"], extra["held_action"]
-    k = min(3, pol["q"].shape[0])
-    robots = [scene(params, pol["yaw"][i]).robot for i in range(k)]
+    k = len(robots)
     return [over_time(pol, held, extra["dt"], params.tolerance, params.success_distance,
                       out / "reach_obstacles_over_time.png"),
             final_arms(robots, pol["q"][:k, -1], pol["target"][:k], params.success_distance,

@@ -5,9 +5,18 @@
 The arm and its actuation are shared with the other 3D tasks (``gvsjax.tasks.arm3d``).
 """
 
-from gvsjax.tasks.reach_pose.env import ReachPose, ReachPoseState, angle, final_summary, observe, rollout, start
+from gvsjax.tasks.reach_pose.env import (
+    ReachPose,
+    ReachPoseMuscle,
+    ReachPoseState,
+    angle,
+    final_summary,
+    observe,
+    rollout,
+    start,
+)
 from gvsjax.tasks.reach_pose.params import ReachPoseParams
 from gvsjax.tasks.reach_pose.poses import make_params, reachable_poses
 
-__all__ = ["ReachPose", "ReachPoseState", "ReachPoseParams", "angle", "final_summary", "observe", "rollout", "start",
-           "make_params", "reachable_poses"]
+__all__ = ["ReachPose", "ReachPoseMuscle", "ReachPoseState", "ReachPoseParams", "angle", "final_summary", "observe",
+           "rollout", "start", "make_params", "reachable_poses"]

@@ -4,12 +4,14 @@ Each episode draws a target pose from the params' table of reachable poses
 (``poses``): a tip position and the rod's tangent there, both of a static
 equilibrium of the arm. The arm (``gv.soft_arm``) starts straight and at rest;
 the policy acts every 0.1 s for 2 s (20 steps) through its two tendon groups
-(``gvsjax.tasks.arm3d``). What counts is the pose at the end: the position
-error (m) and the angle between the tip's tangent and the target direction.
+(``ReachPose``) or bending moments at six control points (``ReachPoseMuscle``,
+whose targets are equilibria under muscle actions; ``gvsjax.tasks.actuation``).
+What counts is the pose at the end: the position error (m) and the angle
+between the tip's tangent and the target direction.
 
-The tendons run parallel to the rod and cannot twist it, so a roll about the
-tip's own axis is not a target here: the direction of the tip (two angles) and
-its position (three coordinates) are.
+Neither actuation twists the rod, so a roll about the tip's own axis is not a
+target here: the direction of the tip (two angles) and its position (three
+coordinates) are.
 
 Observation (40,) for the default arm: ``arm3d.arm_features`` (24: tip position,
 velocity, scaled q and qd), the tip's tangent (3), the target position (3) and
@@ -102,6 +104,9 @@ class ReachPose(Environment):
     def _check(self, params: ReachPoseParams) -> None:
         if params.position is None:
             raise ValueError("params has no target table; build it with gvsjax.tasks.reach_pose.make_params(...)")
+        if params.action is not None and params.action.shape[-1:] != (self.action_size,):
+            raise ValueError(f"the target table's actions have shape {params.action.shape}; {self.name} takes "
+                             f"{self.action_size} (build the table with make_params(actuation=...) of its arm)")
         arm3d.check_task(self, params.arm, params.episode_steps, other_obs=16)
 
     def with_sim_dtype(self, params: ReachPoseParams, sim_dtype: str) -> ReachPoseParams:
@@ -119,11 +124,11 @@ class ReachPose(Environment):
         return observe(state, params), state
 
     def step(self, key, state: ReachPoseState, action, params: ReachPoseParams):
-        """One control step (tensions held for ``control_dt``): ``(obs, state, reward, done, info)``."""
+        """One control step (the action's input held for ``control_dt``): ``(obs, state, reward, done, info)``."""
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
         robot = params.arm.robot
-        tr = arm3d.advance(params.arm, state.q, state.qd, arm3d.tensions(action, params.arm))
+        tr = arm3d.control_step(params.arm, state.q, state.qd, action)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         axis = tip_frame(robot, q)[0][:, 0]
         d = jnp.linalg.norm(tip - state.target)
@@ -191,7 +196,8 @@ class ReachPose(Environment):
         k = {**self.animation_keys, **keys}
         params = self.default_params()
         index = jnp.array([int(k["seed"]) % params.position.shape[0]])
-        out = jax.jit(lambda i: rollout(self, params, policy or _zero, i, open_loop=policy is None,
+        zero = lambda obs: jnp.zeros(obs.shape[:-1] + (self.action_size,))  # noqa: E731
+        out = jax.jit(lambda i: rollout(self, params, policy or zero, i, open_loop=policy is None,
                                         record_q=True))(index)
         i = int(index[0])
         return figures.episode_gif(path, params.arm.robot, np.asarray(out["q"][0]), np.asarray(params.position[i]),
@@ -200,8 +206,21 @@ class ReachPose(Environment):
                                    dpi=int(k["dpi"]))
 
 
-def _zero(obs):
-    return jnp.zeros(obs.shape[:-1] + (ReachPose.action_size,))
+class ReachPoseMuscle(ReachPose):
+    """reach_pose actuated by distributed bending moments: 12 actions, six control points x two
+    directions (``ArmParams.actuation = "muscle"``). Its target tables are the arm's equilibria
+    under muscle actions (the tendon tables hold poses the moments cannot reach)."""
+
+    name = "reach_pose_muscle"
+    action_size = 12
+
+    def default_params(self) -> ReachPoseParams:
+        return make_params(actuation="muscle")
+
+    def train_params(self, variant: str = "") -> ReachPoseParams:
+        if variant:
+            super().train_params(variant)  # raises, naming the choices
+        return make_params(TRAIN_POSES, TRAIN_SEED, actuation="muscle")
 
 
 def _final(out: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -222,7 +241,7 @@ def final_summary(out: dict) -> dict[str, float]:
 
 def rollout(env: ReachPose, params: ReachPoseParams, policy: Policy, index: jax.Array,
             open_loop: bool | jax.Array = False, record_q: bool = False) -> dict:
-    """Episodes towards the table's targets ``index`` (n,) under ``policy(obs (n, k)) -> (n, 4)``, or with
+    """Episodes towards the table's targets ``index`` (n,) under ``policy(obs (n, k)) -> (n, action_size)``, or with
     ``open_loop`` (a bool, may be traced) each target's own held action; jittable.
 
     Returns per step (n, T): ``distance`` (m), ``angle_deg``, ``valid`` (so far), ``tip`` (n, T, 3), and with

@@ -1,8 +1,9 @@
 """Reachable target poses: static equilibria of the arm under random held actions.
 
 A target is the tip's position and the rod's tangent there when the arm rests
-under an action drawn uniformly from [-1, 1]^4 and held (``gv.equilibrium``,
-gravity included). Every target is therefore reachable with the arm at rest,
+under an action drawn uniformly from [-1, 1]^k and held (``gv.equilibrium``,
+gravity included; k = 4 tendon or 12 muscle actions, ``ArmParams.actuation``).
+Every target is therefore reachable with the arm at rest,
 and the action that reaches it is kept: the open-loop baseline holds it.
 Training and evaluation draw from tables of different seeds, so the evaluated
 poses are held out. Building a table compiles the statics once (~15 s) and
@@ -29,15 +30,16 @@ LOAD_STEPS = 4  # continuation steps of the statics: the largest actions curl th
 
 
 def reachable_poses(arm: arm3d.ArmParams, n: int, seed: int) -> dict[str, np.ndarray]:
-    """``n`` equilibria under actions uniform in [-1, 1]^4 from ``seed``: ``position`` (n, 3),
-    ``axis`` (n, 3), ``action`` (n, 4). Raises if any equilibrium fails to converge."""
+    """``n`` equilibria under actions uniform in [-1, 1]^k from ``seed``: ``position`` (n, 3),
+    ``axis`` (n, 3), ``action`` (n, k). Raises if any equilibrium fails to converge."""
     if not (isinstance(n, int) and n >= 1):
         raise ValueError(f"n={n!r} is invalid; expected an int >= 1 (poses in the table)")
     robot = arm.robot
-    actions = jax.random.uniform(jax.random.PRNGKey(seed), (n, arm3d.n_actions(robot)), minval=-1.0, maxval=1.0)
+    actions = jax.random.uniform(jax.random.PRNGKey(seed), (n, arm3d.n_actions(arm)), minval=-1.0, maxval=1.0)
 
     def solve(action):
-        eq = equilibrium(robot, tendon_force=arm3d.tensions(action, arm), load_scale_steps=LOAD_STEPS)
+        tension, strain_force = arm3d.actuate(action, arm)
+        eq = equilibrium(robot, tendon_force=tension, strain_force=strain_force, load_scale_steps=LOAD_STEPS)
         R, p = tip_frame(robot, eq.q)
         return p, R[:, 0], eq.converged
 
@@ -47,25 +49,28 @@ def reachable_poses(arm: arm3d.ArmParams, n: int, seed: int) -> dict[str, np.nda
     return {"position": np.asarray(position), "axis": np.asarray(axis), "action": np.asarray(actions)}
 
 
-_CACHE: dict[tuple, dict] = {}  # tables of the default arm, per (n, seed)
+_CACHE: dict[tuple, dict] = {}  # tables of the default arms, per (n, seed, actuation)
 
 
-def make_params(n_poses: int = EVAL_POSES, seed: int = EVAL_SEED, **overrides: Any) -> ReachPoseParams:
+def make_params(n_poses: int = EVAL_POSES, seed: int = EVAL_SEED, actuation: str = "tendon",
+                **overrides: Any) -> ReachPoseParams:
     """Params with a table of ``n_poses`` targets from ``seed`` (cached for the default arm).
 
-    ``overrides`` are fields of ``ReachPoseParams`` other than the table (e.g. ``arm``, ``k_position``).
+    ``actuation``: the default arm's (``ArmParams.actuation``); the targets are equilibria under
+    its actions. ``overrides`` are fields of ``ReachPoseParams`` other than the table (e.g. ``arm``,
+    which then sets the actuation, ``k_position``).
     """
     allowed = set(ReachPoseParams.__dataclass_fields__) - {"position", "axis", "action"}
     unknown = sorted(set(overrides) - allowed)
     if unknown:
         raise ValueError(f"unknown reach_pose parameter(s) {unknown}; valid: {sorted(allowed)}")
-    base = ReachPoseParams(**overrides)
+    base = ReachPoseParams(**{"arm": arm3d.ArmParams(actuation=actuation), **overrides})
     arm3d.check(base.arm)
     if "arm" in overrides:
         table = reachable_poses(base.arm, n_poses, seed)
     else:
-        if (n_poses, seed) not in _CACHE:
-            _CACHE[(n_poses, seed)] = reachable_poses(base.arm, n_poses, seed)
-        table = _CACHE[(n_poses, seed)]
+        if (n_poses, seed, actuation) not in _CACHE:
+            _CACHE[(n_poses, seed, actuation)] = reachable_poses(base.arm, n_poses, seed)
+        table = _CACHE[(n_poses, seed, actuation)]
     arrays: dict[str, Any] = {k: jnp.asarray(v) for k, v in table.items()}
     return dataclasses.replace(base, **arrays)

@@ -5,9 +5,10 @@ environment, its evaluation and rollout), ``figures`` (drawings and the GIF).
 The arm and its actuation are shared with the other 3D tasks (``gvsjax.tasks.arm3d``).
 """
 
-from gvsjax.tasks.track3d.env import Track3D, Track3DState, distance_summary, observe, rest_tip, rollout
+from gvsjax.tasks.track3d.env import Track3D, Track3DMuscle, Track3DState, distance_summary, observe, rest_tip, rollout
 from gvsjax.tasks.track3d.params import Track3DParams
 from gvsjax.tasks.track3d.target import move, random_direction, start
 
-__all__ = ["Track3D", "Track3DState", "Track3DParams", "distance_summary", "observe", "rest_tip", "rollout",
+__all__ = ["Track3D", "Track3DMuscle", "Track3DState", "Track3DParams",
+           "distance_summary", "observe", "rest_tip", "rollout",
            "move", "random_direction", "start"]

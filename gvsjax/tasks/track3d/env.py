@@ -4,7 +4,8 @@ The target moves at 0.5 m/s in x, y in [-0.6, 0.6] m, z in [0.3, 0.9] m, turning
 to a new uniformly random direction with probability 0.025 per control step and
 bouncing off the box's walls. The arm (``gv.soft_arm``: 1 m, base at the origin,
 along +z at rest, gravity along -z) starts at rest; the policy acts every 0.1 s
-for 10 s (100 steps) through its two tendon groups (``gvsjax.tasks.arm3d``).
+for 10 s (100 steps) through its two tendon groups (``Track3D``) or through
+bending moments at six control points (``Track3DMuscle``; ``gvsjax.tasks.actuation``).
 Parts of the box lie beyond a 1 m arm's reach (its upper corners are 1.2 m from
 the base), so no policy follows the target everywhere.
 
@@ -29,6 +30,7 @@ from flax import struct
 
 from gvsjax.kinematics import tip_state
 from gvsjax.tasks import arm3d
+from gvsjax.tasks.arm3d import ArmParams
 from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.track3d import figures
 from gvsjax.tasks.track3d.params import Track3DParams
@@ -45,7 +47,7 @@ class Track3DState:
     tip_velocity: jax.Array  # (3,) m/s
     target: jax.Array  # (3,) m
     target_velocity: jax.Array  # (3,) m/s
-    tension: jax.Array  # (n_tendons,) N, held during the last step
+    tension: jax.Array  # (n_tendons,) N, held during the last step (0 under muscle actuation)
     step: jax.Array  # () int32, control steps taken
 
 
@@ -104,11 +106,10 @@ class Track3D(Environment):
         return observe(state, params), state
 
     def step(self, key, state: Track3DState, action, params: Track3DParams):
-        """One control step (tensions held for ``control_dt``): ``(obs, state, reward, done, info)``."""
+        """One control step (the action's input held for ``control_dt``): ``(obs, state, reward, done, info)``."""
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
-        tension = arm3d.tensions(action, params.arm)
-        tr = arm3d.advance(params.arm, state.q, state.qd, tension)
+        tr, tension, _ = arm3d.control_step(params.arm, state.q, state.qd, action)
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         target, velocity = move(key, state.target, state.target_velocity, params)
         d = jnp.sqrt(jnp.sum((tip - target) ** 2))
@@ -168,6 +169,17 @@ class Track3D(Environment):
                                    dpi=int(k["dpi"]))
 
 
+class Track3DMuscle(Track3D):
+    """track3d actuated by distributed bending moments: 12 actions, six control points x two directions
+    (``ArmParams.actuation = "muscle"``, up to ``moment_max`` N m each)."""
+
+    name = "track3d_muscle"
+    action_size = 12
+
+    def default_params(self) -> Track3DParams:
+        return Track3DParams(arm=ArmParams(actuation="muscle"))
+
+
 def distance_summary(d: np.ndarray) -> dict[str, float]:
     """Statistics of tip-to-target distances (m) over all entries; a diverged step counts as infinite."""
     return {"mean_m": float(np.mean(d)), "median_m": float(np.median(d)), "p95_m": float(np.percentile(d, 95)),
@@ -175,7 +187,7 @@ def distance_summary(d: np.ndarray) -> dict[str, float]:
 
 
 def rollout(env: Track3D, params: Track3DParams, policy: Policy, keys: jax.Array, record_q: bool = False) -> dict:
-    """Episodes from ``reset(keys[i])`` under ``policy(obs (n, k)) -> (n, 4)``; jittable.
+    """Episodes from ``reset(keys[i])`` under ``policy(obs (n, k)) -> (n, action_size)``; jittable.
 
     Returns per step (n, T): ``distance``, ``valid`` (so far), ``tip`` and ``target``
     (n, T, 3), and with ``record_q`` the coordinates ``q`` (n, T + 1, n_dofs), the first
