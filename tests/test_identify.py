@@ -40,6 +40,7 @@ def fitted():
     return observed, fit
 
 
+@pytest.mark.slow
 def test_recovers_E_and_eta_from_another_discretisation(fitted):
     observed, fit = fitted
     err = relative_errors(fit, TRUTH)
@@ -50,6 +51,7 @@ def test_recovers_E_and_eta_from_another_discretisation(fitted):
     assert fit.history["E"].shape == (7,) and float(fit.history["E"][0]) == E0
 
 
+@pytest.mark.slow
 def test_jacobian_matches_finite_differences(fitted):
     observed, fit = fitted
     run = jax.jit(model)
