@@ -276,6 +276,8 @@ def plot(res: dict, out: str) -> None:
     axes[0].legend(fontsize=7)
     axes[0].set_title(f"identification from {len(res['identify']['throws'])} throws' tip paths", fontsize=9)
     f = res["identify"]["true_factors"]
+    if not c:
+        axes[2].axis("off")
     panels = [(axes[2], {k: m for k, m in c["misses"].items()}, c["n_targets"], "gvsjax (2 modes)")] if c else []
     if pe:
         panels.append((axes[3], {k: v["misses"] for k, v in pe["throws"].items()}, pe["n_targets"],
