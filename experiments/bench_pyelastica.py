@@ -161,14 +161,16 @@ def first_bending_omega() -> float:
     return 1.8751**2 * math.sqrt(P["youngs_modulus"] * I / (rhoA * P["length"] ** 4))
 
 
-def swinging_rod(sim, n_elements: int, T: float):
+def swinging_rod(sim, n_elements: int, T: float, youngs_modulus: float | None = None):
     """The arm as a PyElastica rod in ``sim`` (a system collection with constraints and forcing):
-    hanging along -y, its base swung by ``SwingingBase``, gravity and the ball's weight on the tip."""
+    hanging along -y, its base swung by ``SwingingBase``, gravity and the ball's weight on the tip.
+    ``youngs_modulus``: E (Pa; default the paper's), G = E / (2 (1 + poisson)) as in gvsjax."""
     ea, _, TipForce, SwingingBase = _elastica()
+    E = P["youngs_modulus"] if youngs_modulus is None else float(youngs_modulus)
     rod = ea.CosseratRod.straight_rod(
         n_elements, start=np.zeros(3), direction=np.array([0.0, -1.0, 0.0]), normal=np.array([0.0, 0.0, 1.0]),
         base_length=P["length"], base_radius=P["radius"], density=P["density"],
-        youngs_modulus=P["youngs_modulus"], shear_modulus=P["youngs_modulus"] / (2.0 * (1.0 + P["poisson"])))
+        youngs_modulus=E, shear_modulus=E / (2.0 * (1.0 + P["poisson"])))
     sim.append(rod)
     sim.constrain(rod).using(SwingingBase, constrained_position_idx=(0,), constrained_director_idx=(0,), T=T)
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, -P["gravity"], 0.0]))
@@ -176,9 +178,12 @@ def swinging_rod(sim, n_elements: int, T: float):
     return rod
 
 
-def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", record_every=0):
+def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", record_every=0,
+                     youngs_modulus=None, eta=None):
     """One PyElastica throw to release. Returns dict(tip, tip_velocity, wall_s, setup_s, n_steps,
-    path (k, 3) tip positions if record_every, stretch max |1 - |dx|/l0| at release)."""
+    path (k, 3) tip positions after steps 1, 1 + record_every, ... if record_every, stretch max
+    |1 - |dx|/l0| at release). ``youngs_modulus``, ``eta``: E (Pa) and the Kelvin-Voigt damping
+    (Pa s) of ``damping="kv"``; default the paper's."""
     ea, KelvinVoigtDamper, _, _ = _elastica()
     t_setup = time.perf_counter()
 
@@ -186,12 +191,13 @@ def pyelastica_throw(T=2.0, delta=0.9, dt=1e-4, n_elements=100, damping="kv", re
         pass
 
     sim = Sim()
-    rod = swinging_rod(sim, n_elements, T)
+    rod = swinging_rod(sim, n_elements, T, youngs_modulus)
     t_rel = delta * T
     n_steps = int(math.ceil(t_rel / dt - 1e-9))
     h = t_rel / n_steps
     if damping == "kv":
-        sim.dampen(rod).using(KelvinVoigtDamper, time_step=h, eta=P["damping"], radius=P["radius"])
+        sim.dampen(rod).using(KelvinVoigtDamper, time_step=h, eta=P["damping"] if eta is None else float(eta),
+                              radius=P["radius"])
     elif damping == "linear":
         w1 = first_bending_omega()
         gamma = 3.0 * P["damping"] * w1**2 / P["youngs_modulus"]

@@ -46,6 +46,7 @@ jax.config.update("jax_enable_x64", True)
 
 from gvsjax.contact import Box, Capsule, Contact, ContactSite, Penalty, Plane, Sphere  # noqa: E402
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
+from gvsjax.identify import Fit, fit_parameters  # noqa: E402
 from gvsjax.kinematics import (  # noqa: E402
     backbone,
     end_row,
@@ -84,6 +85,6 @@ __all__ = [
     "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_frame", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
-    "stiffness_and_damping", "equilibrium", "inverse_statics", "moment_map", "control_points",
+    "stiffness_and_damping", "equilibrium", "inverse_statics", "fit_parameters", "Fit", "moment_map", "control_points",
     "Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box",
 ]

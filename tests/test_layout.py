@@ -18,7 +18,7 @@ LAYERS = {
     "dynamics": (4, ["gvsjax.muscles", "gvsjax.tendons", "gvsjax.contact", "gvsjax.dynamics"]),
     "integrators": (5, ["gvsjax.integrators"]),
     "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
-                       "gvsjax.simulation", "gvsjax.statics"]),
+                       "gvsjax.simulation", "gvsjax.statics", "gvsjax.identify"]),
     "tasks": (7, ["gvsjax.tasks"]),
     "ppo": (8, ["gvsjax.ppo"]),
     "command line": (9, ["gvsjax.train", "gvsjax.evaluate", "gvsjax.animate", "gvsjax.runlog"]),

@@ -34,25 +34,34 @@ def coarse_starts(n_side: int = 3) -> jnp.ndarray:
     return jnp.stack(jnp.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
 
 
-def make_solver(params: BasketballParams, n_iters: int = 12, n_starts: int = 3, n_side: int = 3):
-    """A jitted ``solve(targets (B, 2)) -> (actions (B, 2), costs (B,))``."""
+def gauss_newton(params: BasketballParams, actions, targets, n_iters: int):
+    """``n_iters`` line-searched Gauss-Newton steps on c(a) = 0 from ``actions`` (B, 2) at
+    ``targets`` (B, 2) in the model ``params``: ``(actions, costs (B,))``. Jittable with
+    ``params`` traced, so one program serves every arm of one structure."""
     cost = lambda a, t: throw_cost(params, a, t)[0]  # noqa: E731
     value_grad = jax.vmap(jax.value_and_grad(cost))
     costs = jax.vmap(cost)
+
+    def body(a, _):
+        c, g = value_grad(a, targets)
+        step = -(c / jnp.maximum(jnp.sum(g * g, -1), 1e-12))[:, None] * g
+        trials = jnp.stack([jnp.clip(a + f * step, -1.0, 1.0) for f in FRACTIONS], 1)
+        ct = jax.vmap(costs, in_axes=(1, None), out_axes=1)(trials, targets)
+        ct = jnp.where(jnp.isfinite(ct), ct, jnp.inf)
+        best = jnp.argmin(ct, 1)
+        return jnp.take_along_axis(trials, best[:, None, None], 1)[:, 0], None
+
+    a, _ = jax.lax.scan(body, actions, None, length=n_iters)
+    return a, costs(a, targets)
+
+
+def make_solver(params: BasketballParams, n_iters: int = 12, n_starts: int = 3, n_side: int = 3):
+    """A jitted ``solve(targets (B, 2)) -> (actions (B, 2), costs (B,))``."""
+    costs = jax.vmap(lambda a, t: throw_cost(params, a, t)[0])
     starts = coarse_starts(n_side)
 
     def refine(a, target):  # a: (B, 2), target: (B, 2)
-        def body(a, _):
-            c, g = value_grad(a, target)
-            step = -(c / jnp.maximum(jnp.sum(g * g, -1), 1e-12))[:, None] * g
-            trials = jnp.stack([jnp.clip(a + f * step, -1.0, 1.0) for f in FRACTIONS], 1)
-            ct = jax.vmap(costs, in_axes=(1, None), out_axes=1)(trials, target)
-            ct = jnp.where(jnp.isfinite(ct), ct, jnp.inf)
-            best = jnp.argmin(ct, 1)
-            return jnp.take_along_axis(trials, best[:, None, None], 1)[:, 0], None
-
-        a, _ = jax.lax.scan(body, a, None, length=n_iters)
-        return a, costs(a, target)
+        return gauss_newton(params, a, target, n_iters)
 
     @jax.jit
     def solve(targets):
