@@ -1,4 +1,4 @@
-"""Robustness of a trained basketball policy to model error (issue 19, item 2).
+"""Robustness of a trained basketball policy to model error.
 
 The policy was trained on the nominal model (``gv.paper_arm(tip_force=5.886)``). Here the
 *evaluation* model differs from it in one physical parameter at a time, swept over a range:

@@ -1,4 +1,4 @@
-"""Sim-to-sim transfer of the trained basketball policy: gvsjax -> PyElastica (issue 19, item 1).
+"""Sim-to-sim transfer of the trained basketball policy: gvsjax -> PyElastica.
 
 The policy (trained on the task's model: ``gv.paper_arm(tip_force=5.886)``, 2 monomial bending
 modes, 40 ``ars443`` steps) chooses (T, delta) for held-out targets (the first ``--n-targets``
