@@ -12,8 +12,9 @@ near the edge of what it can reach at rest:
 
 * ``cage``: twelve bars of radius 3 cm around the target (0.8, 0, 0.35) m:
   eleven edges of a cube of side 0.5 m (open at the top edge of the face
-  towards the base, where the arm comes in: with that edge the tendon arm
-  cannot thread the face at all) and a bar across the bottom under the target.
+  towards the base, where the arm comes in: with that edge closed, neither the
+  direct ways in nor a trained policy got the arm through the face) and a bar
+  across the bottom under the target.
   The arm at rest stands clear of it; the equilibrium that reaches the target
   passes through the cube's near face >= 14 cm from every bar, and so does the
   way there when the action is raised slowly; applied at once, the swing
