@@ -25,6 +25,11 @@ def _numbers(name: str, value: Any, shape: tuple | None) -> np.ndarray:
     """``value`` as a float array of ``shape`` (None: any), else a ValueError naming ``name``."""
     if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:
         require(False, name, value, "a number" if shape in (None, ()) else f"numbers, shape {shape}")
+    # a flag inside a sequence (True in a 3-vector) would otherwise pass as the number 1
+    items = np.asarray(value, dtype=object).ravel() if isinstance(value, (list, tuple)) else ()
+    bad_item = any(isinstance(x, (bool, np.bool_, str, bytes)) or x is None for x in items)
+    if bad_item or (isinstance(value, np.ndarray) and value.dtype == bool):
+        require(False, name, value, "a number" if shape in (None, ()) else f"numbers, shape {shape}")
     try:
         v = np.asarray(value, dtype=float)
     except (TypeError, ValueError):

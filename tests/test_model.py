@@ -99,6 +99,7 @@ TENDON_ARM_BAD = {
 @given(case=named(TENDON_ARM_BAD))
 @example(case=("tendon_offset", 0.03))  # outside the 25 mm section
 @example(case=("n_gauss", 1))
+@example(case=("hub_inertia", (True, 1e-3, 1e-3)))  # a flag in a vector is not the number 1
 def test_tendon_arm_invalid(case):
     name, value = case
     raises_naming(name, gv.tendon_arm, **{name: value})
