@@ -181,8 +181,7 @@ class ReachObstacles(Environment):
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
         arm = scene(params, state.yaw)
-        tension = arm3d.tensions(self.full_action(action), arm)
-        tr = arm3d.advance(arm, state.q, state.qd, tension, save_every=SAVE_EVERY)
+        tr = arm3d.control_step(arm, state.q, state.qd, self.full_action(action), save_every=SAVE_EVERY)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         depth = jnp.maximum(-jnp.min(tr.contact_gap), 0.0)
         d = jnp.linalg.norm(tip - state.target)
