@@ -73,7 +73,17 @@ from gvsjax.model import (  # noqa: E402
     axis_rotation,
 )
 from gvsjax.muscles import control_points, moment_map  # noqa: E402
-from gvsjax.robots import PAPER_ARM, SOFT_ARM, TENDON_ARM, paper_arm, rod_3d, soft_arm, tendon_arm  # noqa: E402
+from gvsjax.robots import (  # noqa: E402
+    PAPER_ARM,
+    PAPER_ARM_3D,
+    SOFT_ARM,
+    TENDON_ARM,
+    paper_arm,
+    paper_arm_3d,
+    rod_3d,
+    soft_arm,
+    tendon_arm,
+)
 from gvsjax.simulation import simulate  # noqa: E402
 from gvsjax.stability import stable_step_estimate  # noqa: E402
 from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
@@ -81,7 +91,8 @@ from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
-    "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "rod_3d", "TENDON_ARM", "tendon_arm",
+    "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "PAPER_ARM_3D", "paper_arm_3d", "rod_3d",
+    "TENDON_ARM", "tendon_arm",
     "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_frame", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",

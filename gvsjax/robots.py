@@ -294,5 +294,74 @@ def soft_arm(**overrides: Any) -> Robot:
     return robot
 
 
-__all__ = ["paper_arm", "rod_3d", "tendon_arm", "soft_arm", "PAPER_ARM", "TENDON_ARM", "SOFT_ARM", "HANGING",
+# At joint angles 0 the rod's local x axis points along world -z (hanging), y along -x, z along +y.
+HANGING_Z = ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0), (-1.0, 0.0, 0.0))
+
+PAPER_ARM_3D = dict(
+    {k: v for k, v in PAPER_ARM.items() if k not in ("tendon_offset", "base", "basis")},
+    gravity=9.81,  # m/s^2, along world -z
+    basis="legendre",
+    torsion_order=-1,  # -1: no torsion
+    stretch_order=-1,  # -1: inextensible
+    shear_order=-1,  # -1: unshearable
+    recursion="unrolled",  # see SoftLink.recursion
+)
+
+
+def paper_arm_3d(**overrides: Any) -> Robot:
+    """The paper's arm in 3D on a base that turns about the vertical and swings.
+
+    World z is up (gravity along -z). The base is a universal joint with both
+    DoFs prescribed: first the yaw psi about the vertical, then the swing theta
+    about the turned frame's horizontal axis. q = (psi, theta, strains); at
+    psi = theta = 0 the arm hangs along -z, theta = pi/2 points it along -x,
+    theta = pi stands it upright and beyond pi it leans towards +x (the paper's
+    throw, turned by psi about z). Both bending curvatures (in the swing plane
+    and out of it) have ``n_modes`` polynomial terms in ``basis``; torsion,
+    stretch and shear are off unless their orders are >= 0. With psi held at 0
+    the motion stays in the x-z plane and is the paper's planar arm. Keyword
+    overrides (SI units): see ``PAPER_ARM_3D``.
+    """
+    unknown = sorted(set(overrides) - set(PAPER_ARM_3D))
+    if unknown:
+        raise ValueError(f"paper_arm_3d got unknown parameter(s) {unknown}; valid: {sorted(PAPER_ARM_3D)}")
+    p = {**PAPER_ARM_3D, **overrides}
+    for key in ("length", "radius", "youngs_modulus", "density"):
+        positive(key, p[key])
+    for key in ("damping", "gravity", "tip_mass"):
+        nonnegative(key, p[key])
+    finite("tip_force", p["tip_force"])
+    require(isinstance(p["n_modes"], int) and not isinstance(p["n_modes"], bool) and p["n_modes"] >= 1,
+            "n_modes", p["n_modes"], "an int >= 1")
+    for key in ("torsion_order", "stretch_order", "shear_order"):
+        require(isinstance(p[key], int) and not isinstance(p[key], bool) and p[key] >= -1, key, p[key],
+                "an int >= -1 (-1 = inactive)")
+    top = max(p["n_modes"] - 1, p["torsion_order"], p["stretch_order"], p["shear_order"])
+    require(isinstance(p["n_gauss"], int) and not isinstance(p["n_gauss"], bool) and p["n_gauss"] >= top + 1,
+            "n_gauss", p["n_gauss"], f"an int >= {top + 1} (highest order + 1)")
+    require(p["basis"] in ("monomial", "legendre"), "basis", p["basis"], "'monomial' or 'legendre'")
+    require(p["recursion"] in ("unrolled", "scan", "auto"), "recursion", p["recursion"], "'unrolled', 'scan' or 'auto'")
+    bend, shear = p["n_modes"] - 1, p["shear_order"]
+    link = SoftLink(
+        length=p["length"], radius=p["radius"],
+        material=Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"]),
+        basis=StrainBasis(orders=(p["torsion_order"], bend, bend, p["stretch_order"], shear, shear),
+                          kind=p["basis"]),
+        # yaw about the hanging rod's axis (world +z), then the swing about its local z (world +y at psi = 0)
+        joint=Joint("universal", (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+        n_gauss=p["n_gauss"], recursion=p["recursion"],
+    )
+    robot = Robot(
+        links=(link,), gravity=p["gravity"], gravity_direction=(0.0, 0.0, -1.0),
+        loads=(PointLoad(magnitude=p["tip_force"], link=0, X=1.0, direction=(0.0, 0.0, -1.0)),),
+        masses=() if concrete(p["tip_mass"]) and float(p["tip_mass"]) == 0.0 else (PointMass(mass=p["tip_mass"],
+                                                                                           link=0, X=1.0),),
+        base_rotation=HANGING_Z, prescribed=(0, 1),
+    )
+    check_robot(robot)
+    return robot
+
+
+__all__ = ["paper_arm", "paper_arm_3d", "PAPER_ARM_3D", "HANGING_Z",
+           "rod_3d", "tendon_arm", "soft_arm", "PAPER_ARM", "TENDON_ARM", "SOFT_ARM", "HANGING",
            "UPRIGHT"]

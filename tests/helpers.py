@@ -59,7 +59,8 @@ def raises_naming(name, fn, /, *args, exc=ValueError, **kwargs):
 
 
 # modules that bind ``gvsjax.plots.save`` at import (``from gvsjax.plots import save``)
-_SAVERS = ("gvsjax.plots", "gvsjax.tasks.basketball.figures", "gvsjax.tasks.pickplace.figures")
+_SAVERS = ("gvsjax.plots", "gvsjax.tasks.basketball.figures", "gvsjax.tasks.pickplace.figures",
+           "gvsjax.tasks.throw3d.figures")
 
 
 def capture_figures(monkeypatch) -> dict[str, list[dict]]:
@@ -68,10 +69,11 @@ def capture_figures(monkeypatch) -> dict[str, list[dict]]:
     Returns ``{file name: [line, ...]}``, filled as figures are saved; each line is
     ``{"label", "x", "y", "axes"}`` (x, y float arrays; axes: the index of its axes). The
     heights of a figure's bars are under ``"bars"`` in its entry's ``{"label": "bars"}`` line
-    (as ``y``), when it has any.
+    (as ``y``), when it has any; the points of a 2D scatter plot are a ``{"label": "scatter"}`` line.
     """
     import importlib
 
+    from matplotlib.collections import PathCollection
     from matplotlib.container import BarContainer
 
     from gvsjax import plots
@@ -89,6 +91,9 @@ def capture_figures(monkeypatch) -> dict[str, list[dict]]:
                 x = np.array([b.get_x() + b.get_width() / 2 for b in bars], float)
                 y = np.array([b.get_height() for b in bars], float)
                 lines.append({"label": "bars", "x": x, "y": y, "axes": i})
+            for points in (c for c in ax.collections if isinstance(c, PathCollection)):
+                xy = np.asarray(points.get_offsets(), float).reshape(-1, 2)
+                lines.append({"label": "scatter", "x": xy[:, 0], "y": xy[:, 1], "axes": i})
         captured[Path(path).name] = lines
         return real(fig, path)
 

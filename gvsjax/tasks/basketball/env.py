@@ -24,6 +24,7 @@ from flax import struct
 
 from gvsjax import plots
 from gvsjax.robots import paper_arm
+from gvsjax.tasks.ballistics import miss_metrics
 from gvsjax.tasks.base import (
     ROBOT_MATERIAL,
     Box,
@@ -51,20 +52,6 @@ class BasketballState:
     target: jax.Array  # (2,) m
     source_action: jax.Array  # (2,) a grid action whose path passes through the target
     step: jax.Array  # int32
-
-
-def miss_metrics(miss: np.ndarray) -> dict[str, float]:
-    """Summary of misses (m): success < 10 cm, shares within 1 cm and 5 mm, quantiles."""
-    return {
-        "n_targets": int(len(miss)),
-        "success_rate_10cm": float(np.mean(miss < 0.10)),
-        "within_1cm": float(np.mean(miss < 0.01)),
-        "within_5mm": float(np.mean(miss < 0.005)),
-        "median_m": float(np.median(miss)),
-        "p95_m": float(np.percentile(miss, 95)),
-        "max_m": float(np.max(miss)),
-        "mean_m": float(np.mean(miss)),
-    }
 
 
 class Basketball(Environment):

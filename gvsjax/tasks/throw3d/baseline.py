@@ -1,0 +1,34 @@
+"""Differentiable-physics baseline for throw3d: (T, delta, psi_R) per target by Gauss-Newton
+through the simulator (``gvsjax.tasks.aim``), started from a 3 x 3 x 3 grid of actions.
+
+The gradient runs through the arm with its kinematic pass scanned
+(``SoftLink.recursion="scan"``, equal to the unrolled one to rounding): the
+unrolled pass's reverse mode takes more than 10 GB to compile.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from gvsjax.tasks import aim
+from gvsjax.tasks.throw3d.params import Throw3DParams
+from gvsjax.tasks.throw3d.throw import action_to_physical, throw_cost
+
+
+def scanned(params: Throw3DParams) -> Throw3DParams:
+    """``params`` with every soft link's kinematic pass scanned."""
+    links = tuple(dataclasses.replace(link, recursion="scan") if hasattr(link, "recursion") else link
+                  for link in params.arm.links)
+    return dataclasses.replace(params, arm=dataclasses.replace(params.arm, links=links))
+
+
+def solve_targets(params: Throw3DParams, targets: np.ndarray, batch: int = 250, **solver_kw) -> dict[str, Any]:
+    """Solve every target (n, 3) in batches: actions, T, delta, yaw (rad), miss (m), seconds."""
+    fast = scanned(params)
+    r = aim.solve_targets(lambda a, t: throw_cost(fast, a, t)[0], 3, targets, batch=batch, **solver_kw)
+    T, delta, psi = action_to_physical(jnp.asarray(r["action"]), params)
+    return {**r, "T": np.asarray(T), "delta": np.asarray(delta), "yaw": np.asarray(psi)}
