@@ -1,17 +1,19 @@
 """Differentiable-physics baseline vs PPO on the same held-out throw3d targets.
 
-    python experiments/baseline_throw3d.py [run_dir] [n_targets=1000] [seed=1000003]
+    python experiments/baseline_throw3d.py [run_dir] [--n 1000] [--seed 1000003] [--refine-only]
 
 Draws the targets exactly as ``Throw3D.evaluate`` does (``reset`` keys from
-``seed``), solves each by Gauss-Newton through the simulator
-(``gvsjax.tasks.throw3d.baseline``), and writes ``baseline_eval.json`` and
-``baseline_throws.csv`` into ``run_dir`` (default ``figures/``). If
-``run_dir/eval.json`` holds a PPO evaluation with the same seed and count, both
-summaries are printed side by side.
+``seed``) and solves each by Gauss-Newton through the simulator from a grid of
+starts (``gvsjax.tasks.throw3d.baseline.solve_targets``: ``baseline_eval.json``,
+``baseline_throws.csv`` in ``run_dir``, default ``figures/``). If
+``run_dir/eval.json`` holds a PPO evaluation with the same seed and count, its
+summary is printed too, and the policy's actions (from ``eval_throws.csv``) are
+refined by 4 Gauss-Newton steps each (``baseline.refine``: ``refined_eval.json``,
+``refined_throws.csv``). ``--refine-only`` skips the solve from the grid.
 """
 
+import argparse
 import json
-import sys
 from pathlib import Path
 
 import jax
@@ -24,32 +26,45 @@ from gvsjax.tasks import throw3d as t3
 from gvsjax.tasks.throw3d import baseline
 
 
-def main(run_dir="figures", n_targets="1000", seed="1000003"):
-    if run_dir in ("-h", "--help", "help"):
-        print(__doc__.strip())
-        return
-    out = Path(run_dir)
+def _write(out: Path, stem: str, method: str, seed: int, targets, r) -> dict:
+    metrics = ballistics.miss_metrics(r["miss"])
+    (out / f"{stem}_eval.json").write_text(json.dumps({"method": method, "seed": seed, "seconds": r["seconds"],
+                                                       **metrics}, indent=2))
+    write_rows(out / f"{stem}_throws.csv", {"target_x": targets[:, 0], "target_y": targets[:, 1],
+                                            "target_z": targets[:, 2], "T": r["T"], "delta": r["delta"],
+                                            "yaw_deg": np.degrees(r["yaw"]), "miss_m": r["miss"]})
+    return metrics
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("run_dir", nargs="?", default="figures")
+    ap.add_argument("--n", type=int, default=1000)
+    ap.add_argument("--seed", type=int, default=1_000_003)
+    ap.add_argument("--refine-only", action="store_true")
+    args = ap.parse_args()
+    out = Path(args.run_dir)
     out.mkdir(parents=True, exist_ok=True)
-    n, seed = int(n_targets), int(seed)
     env = t3.Throw3D()
     params = env.default_params()
-    keys = jax.random.split(jax.random.PRNGKey(seed), n)
+    keys = jax.random.split(jax.random.PRNGKey(args.seed), args.n)
     _, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     targets = np.asarray(state.target)
-    r = baseline.solve_targets(params, targets)
-    metrics = ballistics.miss_metrics(r["miss"])
-    result = {"method": "gauss-newton through the simulator", "seed": seed, "seconds": r["seconds"], **metrics}
-    (out / "baseline_eval.json").write_text(json.dumps(result, indent=2))
-    write_rows(out / "baseline_throws.csv", {"target_x": targets[:, 0], "target_y": targets[:, 1],
-                                             "target_z": targets[:, 2], "T": r["T"], "delta": r["delta"],
-                                             "yaw_deg": np.degrees(r["yaw"]), "miss_m": r["miss"]})
-    print("baseline:", env.summary(metrics), f"({r['seconds']:.0f} s)")
+    if not args.refine_only:
+        r = baseline.solve_targets(params, targets)
+        m = _write(out, "baseline", "gauss-newton through the simulator", args.seed, targets, r)
+        print("baseline:", env.summary(m), f"({r['seconds']:.0f} s)")
     ppo = out / "eval.json"
     if ppo.exists():
         p = json.loads(ppo.read_text())
-        if p.get("seed") == seed and p.get("n_targets") == n:
+        if p.get("seed") == args.seed and p.get("n_targets") == args.n:
             print("PPO:     ", env.summary(p))
+            rows = np.genfromtxt(out / "eval_throws.csv", delimiter=",", names=True)
+            start = np.asarray(t3.physical_to_action(rows["T"], rows["delta"], np.radians(rows["yaw_deg"]), params))
+            f = baseline.refine(params, start, targets)
+            m = _write(out, "refined", "PPO + 4 Gauss-Newton steps", args.seed, targets, f)
+            print("PPO + 4 Gauss-Newton steps:", env.summary(m), f"({f['seconds']:.0f} s)")
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:])
+    main()

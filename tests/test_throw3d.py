@@ -182,3 +182,7 @@ def test_the_baseline_hits_table_targets_through_the_simulator(small):
     assert np.max(r["miss"]) < 1e-3
     _, _, _, _, info = step(keys, state, jnp.asarray(r["action"]), params)
     np.testing.assert_allclose(np.asarray(info["cost"]), r["miss"], atol=1e-6)
+    # four steps from actions near the table's (a policy's, say) close the gap
+    near = np.clip(np.asarray(state.source_action) + 0.03, -1, 1)
+    f = baseline.refine(params, near, np.asarray(state.target), batch=8)
+    assert np.max(f["miss"]) < 1e-3

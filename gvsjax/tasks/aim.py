@@ -81,3 +81,21 @@ def solve_targets(cost: Cost, dim: int, targets: np.ndarray, batch: int = 250, *
         acts.append(np.asarray(a)[: batch - pad])
         miss.append(np.asarray(c)[: batch - pad])
     return {"action": np.concatenate(acts), "miss": np.concatenate(miss), "seconds": time.perf_counter() - t0}
+
+
+def refine_targets(cost: Cost, actions: np.ndarray, targets: np.ndarray, n_iters: int = 4,
+                   batch: int = 250) -> dict[str, Any]:
+    """``n_iters`` Gauss-Newton steps from given ``actions`` (n, d) (e.g. a policy's) at
+    ``targets``, in batches: ``action``, ``miss`` (m), ``seconds``."""
+    step = jax.jit(lambda a, t: gauss_newton(cost, a, t, n_iters))
+    t0 = time.perf_counter()
+    acts, miss = [], []
+    for i in range(0, len(targets), batch):
+        a, t = jnp.asarray(actions[i:i + batch]), jnp.asarray(targets[i:i + batch])
+        pad = batch - a.shape[0]
+        if pad:
+            a, t = (jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]) for x in (a, t))
+        a, c = step(a, t)
+        acts.append(np.asarray(a)[: batch - pad])
+        miss.append(np.asarray(c)[: batch - pad])
+    return {"action": np.concatenate(acts), "miss": np.concatenate(miss), "seconds": time.perf_counter() - t0}

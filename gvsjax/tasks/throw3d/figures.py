@@ -88,35 +88,44 @@ def throw_figure(params: Throw3DParams, target, T: float, delta: float, psi: flo
 
 def throw_gif(path, params: Throw3DParams, T: float, delta: float, psi: float, frames: int = 60,
               fps: int = 20, dpi: int = 80) -> Path:
-    """The yaw-and-swing to release, then the flight, as a GIF (``frames`` in all)."""
+    """The turn-and-swing to release, then the flight, as a GIF (``frames`` in all): the arm
+    close up on the left, the court and the ball's flight on the right."""
     traj = jax.jit(lambda T, d, s: throw.swing(params, T, d, s, n_steps=SWING_STEPS, integrator=SWING_INTEGRATOR,
                                                 save_every=SWING_SAVE))(T, delta, psi)
     arms = np.asarray(jax.jit(jax.vmap(lambda q: backbone(params.arm, q)))(traj.q))
-    p0, v0 = traj.tip[-1], traj.tip_velocity[-1]
-    ball = np.asarray(throw.flight_path(p0, v0, params, n=200))
+    ball = np.asarray(throw.flight_path(traj.tip[-1], traj.tip_velocity[-1], params, n=200))
     t_rel = float(delta * T)
     n_swing = max(2, frames * 2 // 3)
     n_fly = max(1, frames - n_swing)
     swing_idx = np.linspace(0, len(arms) - 1, n_swing).astype(int)
     fly_idx = np.linspace(0, len(ball) - 1, n_fly + 1).astype(int)[1:]
     extent = max(2.0, float(np.max(np.abs(ball[:, :2]))) + 0.5)
-    fig = plt.figure(figsize=(6, 5.5))
-    ax = fig.add_subplot(projection="3d")
+    fig = plt.figure(figsize=(10, 5))
+    near, far = fig.add_subplot(1, 2, 1, projection="3d"), fig.add_subplot(1, 2, 2, projection="3d")
+    reach = 1.2
 
     def draw(k):
-        ax.cla()
-        _axes3d(ax, params, extent)
+        for ax in (near, far):
+            ax.cla()
+        near.set(xlim=(-reach, reach), ylim=(-reach, reach), zlim=(-reach, reach), xlabel="x [m]",
+                 ylabel="y [m]", zlabel="z [m]")
+        near.set_box_aspect((1, 1, 1))
+        _axes3d(far, params, extent)
+        j = swing_idx[k] if k < n_swing else len(arms) - 1
+        for ax in (near, far):
+            ax.plot(*arms[j].T, color="tab:green", lw=4)
+            ax.plot(*arms[j][:, :2].T, np.full(len(arms[j]), -reach if ax is near else params.court[2]),
+                    color="0.7", lw=2)
         if k < n_swing:
-            arm = arms[swing_idx[k]]
-            t = t_rel * swing_idx[k] / (len(arms) - 1)
-            ax.plot(*arm.T, color="tab:green", lw=4)
-            ax.set_title(f"swing t = {t:.2f} s (release at {t_rel:.2f} s)")
+            near.set_title(f"t = {t_rel * j / (len(arms) - 1):.2f} s (release at {t_rel:.2f} s)")
         else:
-            j = fly_idx[k - n_swing]
-            ax.plot(*arms[-1].T, color="tab:green", lw=4, alpha=0.4)
-            ax.plot(*ball[: j + 1].T, color="tab:blue")
-            ax.plot(*ball[j][:, None], "o", color="tab:orange", ms=6)
-            ax.set_title("flight")
+            b = fly_idx[k - n_swing]
+            inside = ball[: b + 1][np.all(np.abs(ball[: b + 1]) <= reach, axis=1)]  # 3D axes do not clip
+            near.plot(*inside.T, color="tab:blue")
+            far.plot(*ball[: b + 1].T, color="tab:blue")
+            far.plot(*ball[b][:, None], "o", color="tab:orange", ms=6)
+            far.plot(*ball[: b + 1, :2].T, np.full(b + 1, params.court[2]), color="0.7", lw=1)
+            near.set_title("release")
+        far.set_title(f"T = {T:.2f} s, delta = {delta:.2f}, yaw at release {np.degrees(psi):.0f} deg")
 
     return save_gif(fig, draw, frames, path, fps, dpi)
-
