@@ -91,7 +91,8 @@ def capture_figures(monkeypatch) -> dict[str, list[dict]]:
                 x = np.array([b.get_x() + b.get_width() / 2 for b in bars], float)
                 y = np.array([b.get_height() for b in bars], float)
                 lines.append({"label": "bars", "x": x, "y": y, "axes": i})
-            for points in (c for c in ax.collections if isinstance(c, PathCollection)):
+            flat = ax.name != "3d"  # a 3D scatter's offsets are its projection: not recorded
+            for points in (c for c in ax.collections if flat and isinstance(c, PathCollection)):
                 xy = np.asarray(points.get_offsets(), float).reshape(-1, 2)
                 lines.append({"label": "scatter", "x": xy[:, 0], "y": xy[:, 1], "axes": i})
         captured[Path(path).name] = lines
