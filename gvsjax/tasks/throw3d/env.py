@@ -141,6 +141,26 @@ class Throw3D(Environment):
                 figures.throw_figure(params, r["target"][i], float(r["T"][i]), float(r["delta"][i]),
                                      float(r["yaw"][i]), out / "throw3d.png", miss_m=float(r["miss"][i]))]
 
+    def render(self, params: Throw3DParams, state: Throw3DState, last_action) -> np.ndarray:
+        """Top view of the court, the target and the last throw's flight."""
+
+        def draw(ax):
+            rho_max = params.court[1]
+            a = np.linspace(0.0, 2.0 * np.pi, 200)
+            for r in params.court[:2]:
+                ax.plot(r * np.cos(a), r * np.sin(a), color="0.6", ls="--", lw=1)
+            ax.plot(*np.asarray(state.target)[:2], "rx", ms=10, label="target")
+            if last_action is not None:
+                T, delta, psi = throw.action_to_physical(jnp.asarray(last_action), params)
+                arm, ball = figures.release_drawing(params, float(T), float(delta), float(psi))
+                ax.plot(arm[:, 0], arm[:, 1], "g-", lw=3, label="arm at release")
+                ax.plot(ball[:, 0], ball[:, 1], "b-", label="ball")
+            ax.set(xlim=(-rho_max, rho_max), ylim=(-rho_max, rho_max), aspect="equal", xlabel="x [m]",
+                   ylabel="y [m]")
+            ax.legend(loc="upper right", fontsize=7)
+
+        return plots.rgb_image(draw)
+
     def animate(self, path: Path, **keys: Any) -> Path:
         """A throw's GIF: keys T (s), delta, yaw (the yaw at release psi_R, deg), frames, fps, dpi."""
         k = {**self.animation_keys, **keys}

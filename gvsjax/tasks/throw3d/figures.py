@@ -30,6 +30,12 @@ def _release(params, T, delta, psi):
     return backbone(params.arm, traj.q[-1]), throw.flight_path(traj.tip[-1], traj.tip_velocity[-1], params)
 
 
+def release_drawing(params: Throw3DParams, T: float, delta: float, psi: float) -> tuple[np.ndarray, np.ndarray]:
+    """(arm backbone (k, 3) m at release, ball path (200, 3) m) of one throw, as numpy."""
+    arm, ball = _release(params, T, delta, psi)
+    return np.asarray(arm), np.asarray(ball)
+
+
 def _court_rings(ax, params: Throw3DParams, z: float | None = None) -> None:
     a = np.linspace(0.0, 2.0 * np.pi, 200)
     for r in params.court[:2]:
@@ -70,7 +76,7 @@ def _axes3d(ax, params: Throw3DParams, extent: float) -> None:
 def throw_figure(params: Throw3DParams, target, T: float, delta: float, psi: float, path,
                  miss_m: float | None = None) -> Path:
     """One throw: the arm at release, the ball's flight to the floor, the target."""
-    arm, ball = (np.asarray(x) for x in _release(params, T, delta, psi))
+    arm, ball = release_drawing(params, T, delta, psi)
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")
     _axes3d(ax, params, max(2.0, float(np.max(np.abs(ball[:, :2]))) + 0.5))
