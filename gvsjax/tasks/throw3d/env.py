@@ -35,6 +35,7 @@ from gvsjax.tasks.base import (
     sanitize_action,
     scale_payload,
 )
+from gvsjax.tasks.basketball import Basketball
 from gvsjax.tasks.throw3d import figures, throw
 from gvsjax.tasks.throw3d.params import BALL_WEIGHT, Throw3DParams
 from gvsjax.tasks.throw3d.targets import make_params, observe, sample_target
@@ -65,12 +66,7 @@ class Throw3D(Environment):
     randomizable = {**ROBOT_MATERIAL, "payload": scale_payload}
     # basketball's recipe (one throw per step, large batches, heavy reuse, KL-adaptive rate,
     # mirrored pairs) with a third action, and twice its episodes: what fits in 15 minutes on 2 cores
-    ppo_defaults = dict(
-        num_envs=1024, num_steps=1, num_minibatches=8, update_epochs=8,
-        learning_rate=1e-3, anneal_lr=True, clip_eps=0.2, ent_coef=0.0,
-        init_log_std=-1.0, min_log_std=-7.0, finetune_fraction=0.0, total_episodes=2_400_000,
-        antithetic=True, adaptive_kl=0.02, clipped_log_prob=True,
-    )
+    ppo_defaults = {**Basketball.ppo_defaults, "total_episodes": 2_400_000}
 
     def default_params(self) -> Throw3DParams:
         """The task with its target tables (``make_params()``, cached)."""
