@@ -308,6 +308,14 @@ def bounded(x: jax.Array, bound: float) -> jax.Array:
     return jnp.all(jnp.abs(x) <= bound)
 
 
+def draw_index(key: jax.Array, cdf: jax.Array) -> jax.Array:
+    """An index drawn with probabilities given by ``cdf`` (P,), a non-decreasing cumulative
+    weight (its last entry the total). Inverse CDF: O(log P) per draw, where a categorical
+    over P logits costs O(P) random numbers."""
+    index = jnp.searchsorted(cdf, jax.random.uniform(key, dtype=cdf.dtype) * cdf[-1], side="right")
+    return jnp.minimum(index, cdf.shape[0] - 1)
+
+
 def auto_reset_step(env: Environment) -> Callable:
     """A ``step`` that starts a fresh episode whenever one ends.
 

@@ -45,5 +45,5 @@ class BasketballParams:
     cell_tau: jax.Array | None = None  # (C, K) s flight time
     cell_count: jax.Array | None = None  # (C,) int32 samples stored (1..K)
     path_flight_tau: jax.Array | None = None  # (P, M) s, in-window flight times per path
-    path_log_weight: jax.Array | None = None  # (P,) log probability weight of a path (action-uniform)
+    path_cdf: jax.Array | None = None  # (P,) cumulative draw probability of the paths (action-uniform)
     path_flight_jitter: jax.Array | None = None  # (P,) s, spacing of path_flight_tau

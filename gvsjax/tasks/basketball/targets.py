@@ -32,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from gvsjax.robots import paper_arm
+from gvsjax.tasks.base import draw_index
 from gvsjax.tasks.basketball.params import BALL_WEIGHT, BasketballParams
 from gvsjax.tasks.basketball.throw import flight_point, floor_time, physical_to_action, release_state
 
@@ -73,7 +74,7 @@ def sample_target(key, params: BasketballParams):
         return path, tau, _table(params.path_jitter)[path]
 
     def by_action():
-        path = jax.random.categorical(k_path, _table(params.path_log_weight))
+        path = draw_index(k_path, _table(params.path_cdf))
         slot = jax.random.randint(k_slot, (), 0, _table(params.path_flight_tau).shape[1])
         return path, _table(params.path_flight_tau)[path, slot], _table(params.path_flight_jitter)[path]
 
@@ -159,7 +160,7 @@ def _tables(n_grid_T, n_grid_delta, cell, per_cell, sample_ds, per_path, base: B
     action = np.asarray(physical_to_action(phys[:, 0], phys[:, 1], base))
     return dict(path_p0=p0, path_v0=v0, path_action=action, path_tau_end=tau_end,
                 path_jitter=h, cell_path=cell_path, cell_tau=cell_tau, cell_count=counts,
-                path_flight_tau=flight_tau, path_log_weight=np.log(np.maximum(weight, 1e-300)),
+                path_flight_tau=flight_tau, path_cdf=np.cumsum(weight) / np.sum(weight),
                 path_flight_jitter=np.where(has, h * np.bincount(path, minlength=len(p0))
                                             / per_path, 0.0))
 

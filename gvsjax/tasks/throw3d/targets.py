@@ -29,6 +29,7 @@ import numpy as np
 
 from gvsjax.robots import paper_arm_3d
 from gvsjax.tasks.ballistics import flight_point, floor_time
+from gvsjax.tasks.base import draw_index
 from gvsjax.tasks.throw3d.params import BALL_WEIGHT, Throw3DParams
 from gvsjax.tasks.throw3d.throw import physical_to_action, release_state
 
@@ -77,10 +78,7 @@ def sample_target(key, params: Throw3DParams):
     k_path, k_slot, k_jit = jax.random.split(key, 3)
 
     def by_action():
-        # inverse CDF: O(log P) per draw (a categorical over the table's P logits costs O(P))
-        cdf = _table(params.path_cdf)
-        path = jnp.minimum(jnp.searchsorted(cdf, jax.random.uniform(k_path) * cdf[-1], side="right"),
-                           cdf.shape[0] - 1)
+        path = draw_index(k_path, _table(params.path_cdf))
         slot = jax.random.randint(k_slot, (), 0, _table(params.path_tau).shape[1])
         return path, _table(params.path_tau)[path, slot]
 
