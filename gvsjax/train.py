@@ -73,8 +73,9 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
                       "uniformly in nominal x [1-r, 1+r], 0 < r < 1 (names: the task's, listed below); "
                       "empty: none. Evaluation uses the nominal model"),
     "randomize_observe": (False, "append the episode's factors, as (factor - 1) / r, to the observation"),
-    "sim_dtype": ("", "simulator precision in training: float64 or float32 (float32: ~2.7x the throws/s "
-                      "of a batch); empty: float64, or the resumed run's. Evaluation simulates in float64"),
+    "sim_dtype": ("", "simulator precision in training: float64 or float32 (float32: ~1.8x the throws/s "
+                      "of a batch); empty: the task's (listed below), or the resumed run's. Evaluation "
+                      "simulates in float64"),
     "checkpoint_every": (60.0, "seconds of training between checkpoints"),
     "eval_targets": (1000, "episodes of the final evaluation (0 skips it)"),
     "eval_seed": (-1, "seed of the final evaluation (-1: 1_000_003 + seed)"),
@@ -94,7 +95,7 @@ _RUN_RANGES: dict[str, tuple[Any, str]] = {
     "eval_targets": (lambda v: v >= 0, "an int >= 0"),
     "eval_seed": (lambda v: v >= -1, "an int >= -1"),
     "updates_per_call": (lambda v: v >= 0, "an int >= 0"),
-    "sim_dtype": (lambda v: v in ("", "float64", "float32"), "float64, float32 or empty (float64)"),
+    "sim_dtype": (lambda v: v in ("", "float64", "float32"), "float64, float32 or empty (the task's)"),
     "num_processes": (lambda v: v >= 1, "an int >= 1"),
     "process_id": (lambda v: v >= 0, "an int >= 0 (and < num_processes)"),
 }
@@ -140,8 +141,9 @@ def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def training_params(env: Environment, targets: str = "", sim_dtype: str = "") -> Any:
-    """The env params training uses: the task's ``train_params(targets)`` in ``sim_dtype``."""
-    return env.with_sim_dtype(env.train_params(targets), sim_dtype)
+    """The env params training uses: the task's ``train_params(targets)`` in ``sim_dtype``
+    (empty: the task's ``train_sim_dtype``)."""
+    return env.with_sim_dtype(env.train_params(targets), sim_dtype or env.train_sim_dtype)
 
 
 def task_defaults(task: str) -> dict[str, Any]:
@@ -164,7 +166,7 @@ def update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targ
     seed lives in the TrainState's key), so a seed sweep in one process compiles once."""
     config = config.replace(seed=0)
     randomization = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ()
-    key = (task, config, per_call, targets, sim_dtype or "float64", randomization)
+    key = (task, config, per_call, targets, sim_dtype or env.train_sim_dtype, randomization)
     if key not in _STEP_CACHE:
         _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
     return _STEP_CACHE[key]
@@ -178,7 +180,7 @@ def help_text() -> str:
         env = make(task)
         variants = env.train_variants
         lines.append(f"  task={task}" + (f": train_targets in {list(variants)}; " if variants else ": ")
-                     + f"randomize names {sorted(env.randomizable)}")
+                     + f"randomize names {sorted(env.randomizable)}; sim_dtype {env.train_sim_dtype}")
     for task in registered():
         config = build_config(task_defaults(task), "none", {})
         lines += ["", f"PPO config (defaults for task={task}):", describe(config)]
@@ -244,7 +246,7 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         config, run, meta = _resume_config(run, overrides, ckpt_path)
     else:
         config = build_config(task_defaults(task), run["preset"], overrides)
-        run = {**run, "sim_dtype": run["sim_dtype"] or "float64"}
+        run = {**run, "sim_dtype": run["sim_dtype"] or env.train_sim_dtype}
     # randomize= wraps the task (a no-op when empty); its canonical text is what the run records
     env = randomized.wrap(env, run.get("randomize", ""), run.get("randomize_observe", False))
     ranges, observe = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ((), False)

@@ -160,7 +160,7 @@ def test_tiny_run_resume_and_its_figures(tmp_path, capsys, monkeypatch):
     printed = capsys.readouterr().out
     assert str(out) in printed
     saved = json.loads((out / "config.json").read_text())
-    assert saved["num_envs"] == 16 and saved["train_targets"] == "" and saved["sim_dtype"] == "float64"
+    assert saved["num_envs"] == 16 and saved["train_targets"] == "" and saved["sim_dtype"] == "float32"
     rows = _rows(out / "metrics.csv")
     assert len(rows) == 4 and rows[-1]["episodes"] == "64"
     timing = json.loads((out / "timing.json").read_text())
@@ -194,8 +194,8 @@ def test_tiny_run_resume_and_its_figures(tmp_path, capsys, monkeypatch):
     with pytest.raises(ValueError, match="train_targets='area' differs"):  # it shaped the saved run
         train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True,
                      "train_targets": "area"}, {})
-    with pytest.raises(ValueError, match="sim_dtype='float32' differs from the checkpoint's 'float64'"):
-        train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True, "sim_dtype": "float32"}, {})
+    with pytest.raises(ValueError, match="sim_dtype='float64' differs from the checkpoint's 'float32'"):
+        train.train({**train.parse_args(TINY)[0], "out": str(out), "resume": True, "sim_dtype": "float64"}, {})
     assert [int(r["update"]) for r in _rows(out / "metrics.csv")] == list(range(6))
 
 
@@ -214,10 +214,11 @@ def test_training_targets_differ_from_evaluation_only_where_the_task_says_so():
 
 @pytest.mark.extended
 def test_sim_dtype_reaches_the_training_params_only():
-    for task in ("basketball", "pickplace"):
+    for task, trains_in in (("basketball", "float32"), ("pickplace", "float64")):
         env = make(task)
         assert train.training_params(env, "", "float32").sim_dtype == "float32"
-        assert train.training_params(env).sim_dtype == "float64"
+        assert train.training_params(env, "", "float64").sim_dtype == "float64"
+        assert env.train_sim_dtype == trains_in and train.training_params(env).sim_dtype == trains_in
         assert env.default_params().sim_dtype == "float64"  # what evaluation simulates with
     with pytest.raises(ValueError, match="sim_dtype='float16' is invalid; expected float64, float32"):
         train.parse_args(["task=basketball", "sim_dtype=float16"])

@@ -159,6 +159,9 @@ class Environment:
     # name -> (params, factor) -> params with that parameter x factor. Default: the soft material
     # (E, damping eta, density) of every gv.Robot in the params; a task adds its payload, if any.
     randomizable: ClassVar[Mapping[str, Scale]] = ROBOT_MATERIAL
+    # the simulator precision training uses when the run leaves ``sim_dtype`` empty; evaluation
+    # always simulates with ``default_params()`` (float64). "float32" needs a params ``sim_dtype``.
+    train_sim_dtype: ClassVar[str] = "float64"
 
     # ------------------------------------------------------------------ the functional API
 
@@ -198,12 +201,13 @@ class Environment:
 
     def with_sim_dtype(self, params: PyTree, sim_dtype: str) -> PyTree:
         """``params`` simulating in ``sim_dtype`` ("float64" or "float32")."""
-        if sim_dtype in ("", "float64") and not hasattr(params, "sim_dtype"):
+        sim_dtype = sim_dtype or "float64"
+        if sim_dtype == "float64" and not hasattr(params, "sim_dtype"):
             return params
         if not hasattr(params, "sim_dtype"):
             raise ValueError(f"sim_dtype={sim_dtype!r} is invalid for task={self.name!r}: it simulates in "
-                             "float64 only (leave sim_dtype empty)")
-        return params.replace(sim_dtype=sim_dtype or "float64")
+                             "float64 only")
+        return params.replace(sim_dtype=sim_dtype)
 
     # ------------------------------------------------------------------ evaluation
 

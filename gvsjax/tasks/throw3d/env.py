@@ -67,6 +67,7 @@ class Throw3D(Environment):
     # basketball's recipe (one throw per step, large batches, heavy reuse, KL-adaptive rate,
     # mirrored pairs) with a third action, and twice its episodes: what fits in 15 minutes on 2 cores
     ppo_defaults = {**Basketball.ppo_defaults, "total_episodes": 2_400_000}
+    train_sim_dtype = Basketball.train_sim_dtype
 
     def default_params(self) -> Throw3DParams:
         """The task with its target tables (``make_params()``, cached)."""
