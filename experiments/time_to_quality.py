@@ -29,7 +29,7 @@ import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.ppo import build_config, init, make_policy, make_update, num_updates
 from gvsjax.tasks import make
 from gvsjax.tasks.basketball import miss_metrics
-from gvsjax.train import default_updates_per_call, parse_args, task_defaults, training_params
+from gvsjax.train import default_updates_per_call, parse_args, task_defaults, training_params, use_compile_cache
 
 LEVELS = {
     "paper (100% < 10 cm, >= 55% < 1 cm)": lambda m: m["success_rate_10cm"] >= 1.0 and m["within_1cm"] >= 0.55,
@@ -62,6 +62,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--n-targets", type=int, default=1000)
     args, rest = ap.parse_known_args(argv)
     run, overrides = parse_args(["task=basketball"] + rest)
+    if run["compile_cache"]:  # before anything compiles
+        use_compile_cache(run["compile_cache"])
     config = build_config(task_defaults(run["task"]), run["preset"], overrides)
     env = make(run["task"])
     eval_params = env.default_params()  # evaluation simulates in float64 whatever training uses

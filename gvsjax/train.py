@@ -82,6 +82,9 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
     "progress": (True, "show a tqdm progress bar"),
     "updates_per_call": (0, "PPO updates per jitted call (0: ~8k episodes per call); "
                             "checkpoints and the finiteness check happen between calls"),
+    "compile_cache": ("", "a folder for JAX's persistent compilation cache: a later run of the same program "
+                          "loads its compiled code instead of compiling it; empty: off. Keep it private "
+                          "to you and to this machine (its entries are native code)"),
     "coordinator": ("", "HOST:PORT of process 0 in a run over several processes (hosts); empty: one process"),
     "num_processes": (1, "processes of the run, each started with the same arguments but its own "
                          "process_id; num_envs must be a multiple of their total device count"),
@@ -345,6 +348,15 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     return out
 
 
+def use_compile_cache(folder: str) -> None:
+    """Store and reuse compiled programs in ``folder`` (JAX's persistent cache). Call it before
+    anything compiles: JAX reads the setting once."""
+    path = Path(folder).expanduser()
+    path.mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if any(a in ("-h", "--help", "help") for a in argv):
@@ -352,6 +364,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         run, overrides = parse_args(argv)
+        if run["compile_cache"]:
+            use_compile_cache(run["compile_cache"])
         train(run, overrides)
     except (ValueError, ckpt.CheckpointError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -429,3 +429,25 @@ def test_resume_from_a_damaged_checkpoint_is_a_clear_error(runs, tmp_path, capsy
     err = capsys.readouterr().err
     assert rc == 2 and str(run / "checkpoint.ckpt") in err
     assert ("truncated" in err) if damage == "truncate" else ("corrupted" in err)
+
+
+@pytest.mark.extended
+def test_a_compile_cache_is_written_once_and_then_read(tmp_path):
+    """Two processes train the same program with ``compile_cache``: the first fills the folder,
+    the second finds every program there (no new entry) and trains to the same checkpoint."""
+    cache = tmp_path / "cache"
+    tiny = ["total_episodes=128", "updates_per_call=8"]
+    code, log = _finish(_start(tmp_path / "a", f"compile_cache={cache}", *tiny))
+    assert code == 0, log
+    entries = sorted(p.name for p in cache.iterdir())
+    assert entries, "the first run wrote no compiled program"
+    code, log = _finish(_start(tmp_path / "b", f"compile_cache={cache}", *tiny))
+    assert code == 0, log
+    assert sorted(p.name for p in cache.iterdir()) == entries  # every program came from the cache
+    a, b = (checkpoint.load_raw(tmp_path / r / "checkpoint.ckpt")["train_state"] for r in "ab")
+    jax.tree.map(np.testing.assert_array_equal, a, b)
+
+
+def test_compile_cache_is_a_folder_option():
+    run, _ = train.parse_args(["compile_cache=~/cache"])
+    assert run["compile_cache"] == "~/cache" and train.parse_args([])[0]["compile_cache"] == ""
