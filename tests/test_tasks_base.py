@@ -55,3 +55,16 @@ def test_environment_defaults():
     with pytest.raises(ValueError, match="task='bandit' has no animation"):
         env.animate("never.gif")
     assert env.render(params, None, None) is None and env.ppo_defaults == {} and env.train_variants == ()
+
+
+def test_draw_index_follows_the_weights():
+    """Frequencies of 200k inverse-CDF draws (jit of vmap) match the weights, zero weights included."""
+    weight = np.array([0.0, 1.0, 3.0, 0.0, 6.0, 0.5])
+    cdf = jnp.asarray(np.cumsum(weight))  # unnormalised: the last entry is the total
+    keys = jax.random.split(jax.random.PRNGKey(0), 200_000)
+    index = np.asarray(jax.jit(jax.vmap(base.draw_index, in_axes=(0, None)))(keys, cdf))
+    counts = np.bincount(index, minlength=len(weight))
+    expected = weight / weight.sum() * len(keys)
+    assert counts[weight == 0].sum() == 0
+    # within 5 binomial standard deviations of the expected counts
+    np.testing.assert_array_less(np.abs(counts - expected), 5 * np.sqrt(expected + 1))
