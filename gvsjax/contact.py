@@ -36,7 +36,8 @@ from gvsjax.kinematics import forward
 from gvsjax.lie import zeros
 from gvsjax.magnus import ZANNA, Point, advance, grid_of, magnus, rest_strain, strain, strain_rate
 from gvsjax.model import RigidLink, Robot, SoftLink
-from gvsjax.obstacles import OBSTACLES, TINY, Box, Capsule, Plane, Sphere
+from gvsjax.obstacles import OBSTACLES, Box, Capsule, Plane, Sphere
+from gvsjax.stacked_contact import curved_area, smooth_depth, stacked_law
 from gvsjax.validation import concrete, finite, integer, nonnegative, positive, require
 
 
@@ -100,31 +101,55 @@ def points_for(length: float, curvature: float, error: float = 1e-3) -> int:
 # the law at one sample (broadcasts over leading axes)
 
 
-def _smooth_depth(gap, l):
-    return l * jax.nn.softplus(-gap / l)
-
-
 def _flat_area(gap, slope, u, lo, hi, l):
     """For a gap linear along the piece (gap at u, d gap/du = slope): the integral over [lo, hi]
     of the depth, smoothed at the deepest end and falling linearly from there while
     positive; the length where it is positive, and its middle (where the force acts)."""
     deep = jnp.where(slope > 0, lo, hi)
     s = jnp.maximum(jnp.abs(slope), 1e-12)
-    peak = _smooth_depth(gap + slope * (deep - u), l)
+    peak = smooth_depth(gap + slope * (deep - u), l)
     length = jnp.minimum(peak / s, hi - lo)
     middle = jnp.where(slope > 0, lo + length / 2, hi - length / 2)
     return length * (peak - s * length / 2), length, middle
 
 
-def _curved_area(gap, curv, u, centre, lo, hi, l):
-    """For a gap growing like curv (w - centre)^2 / 2 about its minimum at ``centre`` (gap at u):
-    the integral over [lo, hi] of the depth (its peak smoothed), the length where it is
-    positive, and u (where the force acts)."""
-    peak = _smooth_depth(gap - 0.5 * curv * (u - centre) ** 2, l)
-    half = jnp.sqrt(2.0 * peak / curv + TINY * TINY)
-    a = jnp.clip(centre - half, lo, hi)
-    b = jnp.clip(centre + half, lo, hi)
-    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a, u
+def _groups(obstacles) -> list[tuple[Any, bool]]:
+    """The obstacles, the static spheres and the static capsules each stacked into one (leaves with
+    a leading axis) when there are several: the law then runs once over all of a kind."""
+    stackable = lambda o, kind: type(o) is kind and o.motion is None  # noqa: E731
+    out: list[tuple[Any, bool]] = []
+    rest = list(obstacles)
+    for kind in (Sphere, Capsule):
+        same = [o for o in obstacles if stackable(o, kind)]
+        if len(same) > 1:
+            out.append((jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *same), True))
+            rest = [o for o in rest if not stackable(o, kind)]
+    return out + [(o, False) for o in rest]
+
+
+def _pair(obs, p, tangent, omega, vel, radius, lo, hi, pen: Penalty, t):
+    """One obstacle's (or a stack's) world force and moment about the centre on a piece or site,
+    and its gap (``law``'s arguments; lo None: a site)."""
+    l = pen.smoothing
+    point = lo is None
+    pc = obs.piece(p, tangent, 0.0 if point else lo, 0.0 if point else hi, t)
+    g = pc.gap - radius
+    if point:
+        area, length, u = smooth_depth(g, l), 1.0, pc.u
+    elif isinstance(obs, (Plane, Box)):
+        area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
+        g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
+    else:
+        area, length, u = curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
+    chi = jax.nn.sigmoid(-g / l)
+    arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
+    v_rel = vel + jnp.cross(omega, arm) - pc.velocity
+    v_n = jnp.sum(v_rel * pc.normal, axis=-1)
+    f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
+    v_t = v_rel - v_n[..., None] * pc.normal
+    slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
+    f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
+    return f, jnp.cross(arm, f), g
 
 
 def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
@@ -138,32 +163,23 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     """
     tangent = R[..., :, 0]
     omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
-    l = pen.smoothing
-    point = lo is None
-    lo_, hi_ = (0.0, 0.0) if point else (lo, hi)
     force = jnp.zeros_like(p)
     moment = jnp.zeros_like(p)
     gap_min = jnp.full(p.shape[:-1], jnp.inf, p.dtype)
-    for obs in obstacles:
-        pc = obs.piece(p, tangent, lo_, hi_, t)
-        g = pc.gap - radius
-        if point:
-            area, length, u = _smooth_depth(g, l), 1.0, pc.u
-        elif isinstance(obs, (Plane, Box)):
-            area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
-            g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
-        else:
-            area, length, u = _curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
-        chi = jax.nn.sigmoid(-g / l)
-        arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
-        v_rel = vel + jnp.cross(omega, arm) - pc.velocity
-        v_n = jnp.sum(v_rel * pc.normal, axis=-1)
-        f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
-        v_t = v_rel - v_n[..., None] * pc.normal
-        slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
-        f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
+    for obs, stacked in _groups(obstacles):
+        if stacked and lo is not None:
+            f3, m3, g = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen)
+            force, moment = force + jnp.stack(f3, -1), moment + jnp.stack(m3, -1)
+            gap_min = jnp.minimum(gap_min, g)
+            continue
+        # a stack of obstacles is one more axis before the vectors' (summed over below)
+        x = (lambda a: a[..., None, :]) if stacked else (lambda a: a)  # noqa: E731
+        y = (lambda a: a if a is None else jnp.asarray(a)[..., None]) if stacked else (lambda a: a)  # noqa: E731
+        f, m, g = _pair(obs, x(p), x(tangent), x(omega), x(vel), y(radius), y(lo), y(hi), pen, t)
+        if stacked:
+            f, m, g = jnp.sum(f, axis=-2), jnp.sum(m, axis=-2), jnp.min(g, axis=-1)
         force = force + f
-        moment = moment + jnp.cross(arm, f)
+        moment = moment + m
         gap_min = jnp.minimum(gap_min, g)
     body = jnp.concatenate([jnp.einsum("...ji,...j->...i", R, moment),
                             jnp.einsum("...ji,...j->...i", R, force)], axis=-1)
