@@ -269,8 +269,11 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
         w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
         w6 = tuple(w[:, k] for k in range(6))
-        for j, col in enumerate(J):
-            F[j] = lie.add(F[j], _sum(lie.dot(col, w6)))
+        live = [j for j, col in enumerate(J) if not lie.is_zero(lie.dot(col, w6))]
+        if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
+            Fs = jnp.sum(jnp.stack([jnp.broadcast_to(lie.dot(J[j], w6), (n_c,)) for j in live], -1), axis=0)
+            for k, j in enumerate(live):
+                F[j] = lie.add(F[j], Fs[k])
         forces.append(f)
         gaps.append(g)
     n = len(robot.links)
