@@ -2,9 +2,10 @@
 
 Each variant is one control step (``arm3d.control_step``, 16 ``ars443`` substeps, as
 ``ReachObstacles.step``) of ``--batch`` envs under random actions, ``jit(vmap)``-ed; the time
-is the median of ``--repeats`` calls after a compiling one. Variants: the task's cage (and with the
-saved states' gaps the env reads), the cage moved far away, no obstacles (the samples' kinematics and J^T w, a zero law), no contact
-at all (16 and 8 substeps), and the cage with other numbers of samples. ``env`` times
+is the median of ``--repeats`` calls after a compiling one. Variants: the task's cage (and with
+the saved states' gaps the env reads), the cage moved far away, no obstacles (the samples'
+kinematics and J^T w, a zero law), no contact at all (16 and 8 substeps), and the cage with
+other numbers of samples. ``env`` times
 ``ReachObstacles.step`` itself. Episodes/s is the batch over 30 steps' time.
 
     python experiments/bench_contact_step.py --dtypes float32 float64
@@ -79,7 +80,8 @@ def main() -> None:
     q = 0.1 * jax.random.normal(jax.random.PRNGKey(2), (args.batch, n))
     qd = jnp.zeros((args.batch, n))
     print(f"batch {args.batch}, median of {args.repeats}; episodes/s = batch / (30 x step)")
-    print(f"{'variant':<14}{'dtype':<9}{'ms/step':>9}{'ep/s':>8}{'us/arm-substep':>16}{'compile s':>11}{'HLO kchars':>12}")
+    print(f"{'variant':<14}{'dtype':<9}{'ms/step':>9}{'ep/s':>8}{'us/arm-substep':>16}{'compile s':>11}"
+          f"{'HLO kchars':>12}")
     for dtype in args.dtypes:
         for name in args.variants:
             f = stepper(name, dtype)

@@ -24,6 +24,7 @@ Coulomb's law for |v_t| >> v_s, a viscous creep below. See docs/contact.md.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import jax
@@ -122,7 +123,10 @@ def _groups(obstacles) -> list[tuple[Any, bool]]:
     for kind in (Sphere, Capsule):
         same = [o for o in obstacles if stackable(o, kind)]
         if len(same) > 1:
-            out.append((jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *same), True))
+            # as arrays first: a leaf given as a tuple of floats is a pytree of floats
+            same = [o.replace(**{f.name: jnp.asarray(getattr(o, f.name)) for f in dataclasses.fields(o)
+                                 if f.name != "motion"}) for o in same]
+            out.append((jax.tree.map(lambda *a: jnp.stack(a), *same), True))
             rest = [o for o in rest if not stackable(o, kind)]
     return out + [(o, False) for o in rest]
 
@@ -214,9 +218,11 @@ def _rows(pt: Point, base: np.ndarray, n: int):
 
 
 def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, qd):
-    """Pose, twist and Jacobian at every contact sample of soft link ``li``, each sample one
-    Magnus step (as ``kinematics._soft_link``'s) from the grid point before it, all samples at
-    once: the scalars are (n_c,) arrays. Returns (R, p, J, eta) in scalar algebra."""
+    """Pose and twist at every contact sample of soft link ``li``, each sample one Magnus step
+    (as ``kinematics._soft_link``'s) from the grid point before it, all samples at once: the
+    scalars are (n_c,) arrays. Returns (R, p, eta) in scalar algebra and ``pull``: body wrenches
+    at the samples (6 scalars) -> J^T w per sample (n scalars), J's columns never formed (the
+    step's transpose carries the wrench back instead, one vector instead of n columns)."""
     grid = grid_of(robot, li)
     Xc = np.asarray(robot.contact.material_points(link))
     n_c = len(Xc)
@@ -239,10 +245,26 @@ def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q,
     P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L, dtype)
     P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L, dtype)
     xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
-    R_s, p_s, S_cols, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), P1, P2,
-                                       jnp.asarray(dX, dtype) * L, with_psi=False)
-    R, p, J, eta, _ = advance((R, p, J, eta, zeros(6)), R_s, p_s, S_cols, list(range(s0, end)), S_qd, None, False)
-    return R, p, J, eta
+    h = jnp.asarray(dX, dtype) * L
+    R_s, p_s, _, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), [], [], h,
+                                  with_psi=False)
+    R, p, _, eta, _ = advance((R, p, [], eta, zeros(6)), R_s, p_s, [], [], S_qd, None, False)
+    c, half_h = lie.mul(lie.SQRT3 / 12.0, lie.mul(h, h)), lie.mul(0.5, h)
+    O = lie.vadd(lie.vscale(half_h, lie.vadd(xi1, xi2)), lie.vscale(c, lie.ad(xi1, xi2)))  # as magnus'
+
+    def pull(w):
+        # J = Ad_step^-1 (J_before + T(O) Z) with magnus' Z = h/2 (P1 + P2) + c (ad_xi1 P2 - ad_xi2 P1)
+        wb = lie.ad_inv_transpose(R_s, p_s, w)
+        z = lie.dexp_transpose(O, wb)
+        z1, z2 = lie.ad_transpose(xi1, z), lie.ad_transpose(xi2, z)
+        terms = [lie.dot(col, wb) for col in J]
+        for k, (a, b) in enumerate(zip(P1, P2)):
+            own = lie.add(lie.mul(half_h, lie.dot(lie.vadd(a, b), z)),
+                          lie.mul(c, lie.sub(lie.dot(b, z1), lie.dot(a, z2))))
+            terms[s0 + k] = lie.add(terms[s0 + k], own)
+        return terms
+
+    return R, p, eta, pull
 
 
 def _arrays(R, p, eta, n_c: int):
@@ -262,16 +284,16 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
             continue
         Xc = np.asarray(contact.material_points(link))
         n_c = len(Xc)
-        Rs, ps, J, etas = _soft_samples(robot, li, link, points, q, qd)
+        Rs, ps, etas, pull = _soft_samples(robot, li, link, points, q, qd)
         R, p, eta = _arrays(Rs, ps, etas, n_c)
         half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
         w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
-        w6 = tuple(w[:, k] for k in range(6))
-        live = [j for j, col in enumerate(J) if not lie.is_zero(lie.dot(col, w6))]
+        terms = pull(tuple(w[:, k] for k in range(6)))
+        live = [j for j, x in enumerate(terms) if not lie.is_zero(x)]
         if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
-            Fs = jnp.sum(jnp.stack([jnp.broadcast_to(lie.dot(J[j], w6), (n_c,)) for j in live], -1), axis=0)
+            Fs = jnp.sum(jnp.stack([jnp.broadcast_to(terms[j], (n_c,)) for j in live], -1), axis=0)
             for k, j in enumerate(live):
                 F[j] = lie.add(F[j], Fs[k])
         forces.append(f)

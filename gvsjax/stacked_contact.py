@@ -54,8 +54,8 @@ def _piece(obs, p, t, lo, hi):
         dist = jnp.sqrt(_dot(d, d) + TINY * TINY)
         return u, dist - jnp.asarray(obs.radius, dtype), tuple(x / dist for x in d), 1.0 / dist, centre
     a = jnp.asarray(obs.start, dtype)
-    e = jnp.asarray(obs.end, dtype) - a
-    e = tuple(e[:, i] for i in range(3))
+    e_arr = jnp.asarray(obs.end, dtype) - a
+    e = tuple(e_arr[:, i] for i in range(3))
     ee = _dot(e, e)
     r0 = tuple(p[i] - a[:, i] for i in range(3))
     te, b1, b2 = _dot(t, e), _dot(t, r0), _dot(e, r0)

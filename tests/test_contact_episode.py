@@ -5,10 +5,10 @@ must reproduce the episode's states, gaps and penetrations to float64 rounding.
 Rewrite the reference (only for an intended change of physics): ``python tests/test_contact_episode.py``.
 """
 
+import dataclasses
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import gvsjax as gv  # noqa: F401  (XLA flags first)
@@ -21,8 +21,6 @@ REFERENCE = Path(__file__).parent / "data" / "reach_obstacles_episode.npz"
 def episode() -> dict[str, np.ndarray]:
     """30 control steps of the held reference action from reset key 0, float64, the scene
     turned by 0.3 rad (traced obstacles, as in training)."""
-    import dataclasses
-
     env = make("reach_obstacles")
     params = dataclasses.replace(env.default_params(), yaw_range=0.3)
     policy = held_policy(env)
