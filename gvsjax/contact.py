@@ -24,6 +24,7 @@ Coulomb's law for |v_t| >> v_s, a viscous creep below. See docs/contact.md.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import jax
@@ -36,7 +37,8 @@ from gvsjax.kinematics import forward
 from gvsjax.lie import zeros
 from gvsjax.magnus import ZANNA, Point, advance, grid_of, magnus, rest_strain, strain, strain_rate
 from gvsjax.model import RigidLink, Robot, SoftLink
-from gvsjax.obstacles import OBSTACLES, TINY, Box, Capsule, Plane, Sphere
+from gvsjax.obstacles import OBSTACLES, Box, Capsule, Plane, Sphere
+from gvsjax.stacked_contact import curved_area, smooth_depth, stacked_law
 from gvsjax.validation import concrete, finite, integer, nonnegative, positive, require
 
 
@@ -100,31 +102,58 @@ def points_for(length: float, curvature: float, error: float = 1e-3) -> int:
 # the law at one sample (broadcasts over leading axes)
 
 
-def _smooth_depth(gap, l):
-    return l * jax.nn.softplus(-gap / l)
-
-
 def _flat_area(gap, slope, u, lo, hi, l):
     """For a gap linear along the piece (gap at u, d gap/du = slope): the integral over [lo, hi]
     of the depth, smoothed at the deepest end and falling linearly from there while
     positive; the length where it is positive, and its middle (where the force acts)."""
     deep = jnp.where(slope > 0, lo, hi)
     s = jnp.maximum(jnp.abs(slope), 1e-12)
-    peak = _smooth_depth(gap + slope * (deep - u), l)
+    peak = smooth_depth(gap + slope * (deep - u), l)
     length = jnp.minimum(peak / s, hi - lo)
     middle = jnp.where(slope > 0, lo + length / 2, hi - length / 2)
     return length * (peak - s * length / 2), length, middle
 
 
-def _curved_area(gap, curv, u, centre, lo, hi, l):
-    """For a gap growing like curv (w - centre)^2 / 2 about its minimum at ``centre`` (gap at u):
-    the integral over [lo, hi] of the depth (its peak smoothed), the length where it is
-    positive, and u (where the force acts)."""
-    peak = _smooth_depth(gap - 0.5 * curv * (u - centre) ** 2, l)
-    half = jnp.sqrt(2.0 * peak / curv + TINY * TINY)
-    a = jnp.clip(centre - half, lo, hi)
-    b = jnp.clip(centre + half, lo, hi)
-    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a, u
+def _groups(obstacles) -> list[tuple[Any, bool]]:
+    """The obstacles, the static spheres and the static capsules each stacked into one (leaves with
+    a leading axis) when there are several: the law then runs once over all of a kind."""
+    stackable = lambda o, kind: type(o) is kind and o.motion is None  # noqa: E731
+    out: list[tuple[Any, bool]] = []
+    rest = list(obstacles)
+    for kind in (Sphere, Capsule):
+        same = [o for o in obstacles if stackable(o, kind)]
+        if len(same) > 1:
+            # as arrays first: a leaf given as a tuple of floats is a pytree of floats
+            same = [o.replace(**{f.name: jnp.asarray(getattr(o, f.name)) for f in dataclasses.fields(o)
+                                 if f.name != "motion"}) for o in same]
+            out.append((jax.tree.map(lambda *a: jnp.stack(a), *same), True))
+            rest = [o for o in rest if not stackable(o, kind)]
+    return out + [(o, False) for o in rest]
+
+
+def _pair(obs, p, tangent, omega, vel, radius, lo, hi, pen: Penalty, t):
+    """One obstacle's (or a stack's) world force and moment about the centre on a piece or site,
+    and its gap (``law``'s arguments; lo None: a site)."""
+    l = pen.smoothing
+    point = lo is None
+    pc = obs.piece(p, tangent, 0.0 if point else lo, 0.0 if point else hi, t)
+    g = pc.gap - radius
+    if point:
+        area, length, u = smooth_depth(g, l), 1.0, pc.u
+    elif isinstance(obs, (Plane, Box)):
+        area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
+        g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
+    else:
+        area, length, u = curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
+    chi = jax.nn.sigmoid(-g / l)
+    arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
+    v_rel = vel + jnp.cross(omega, arm) - pc.velocity
+    v_n = jnp.sum(v_rel * pc.normal, axis=-1)
+    f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
+    v_t = v_rel - v_n[..., None] * pc.normal
+    slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
+    f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
+    return f, jnp.cross(arm, f), g
 
 
 def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
@@ -138,32 +167,23 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     """
     tangent = R[..., :, 0]
     omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
-    l = pen.smoothing
-    point = lo is None
-    lo_, hi_ = (0.0, 0.0) if point else (lo, hi)
     force = jnp.zeros_like(p)
     moment = jnp.zeros_like(p)
     gap_min = jnp.full(p.shape[:-1], jnp.inf, p.dtype)
-    for obs in obstacles:
-        pc = obs.piece(p, tangent, lo_, hi_, t)
-        g = pc.gap - radius
-        if point:
-            area, length, u = _smooth_depth(g, l), 1.0, pc.u
-        elif isinstance(obs, (Plane, Box)):
-            area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
-            g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
-        else:
-            area, length, u = _curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
-        chi = jax.nn.sigmoid(-g / l)
-        arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
-        v_rel = vel + jnp.cross(omega, arm) - pc.velocity
-        v_n = jnp.sum(v_rel * pc.normal, axis=-1)
-        f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
-        v_t = v_rel - v_n[..., None] * pc.normal
-        slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
-        f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
+    for obs, stacked in _groups(obstacles):
+        if stacked and lo is not None:
+            f3, m3, g = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen)
+            force, moment = force + jnp.stack(f3, -1), moment + jnp.stack(m3, -1)
+            gap_min = jnp.minimum(gap_min, g)
+            continue
+        # a stack of obstacles is one more axis before the vectors' (summed over below)
+        x = (lambda a: a[..., None, :]) if stacked else (lambda a: a)  # noqa: E731
+        y = (lambda a: a if a is None else jnp.asarray(a)[..., None]) if stacked else (lambda a: a)  # noqa: E731
+        f, m, g = _pair(obs, x(p), x(tangent), x(omega), x(vel), y(radius), y(lo), y(hi), pen, t)
+        if stacked:
+            f, m, g = jnp.sum(f, axis=-2), jnp.sum(m, axis=-2), jnp.min(g, axis=-1)
         force = force + f
-        moment = moment + jnp.cross(arm, f)
+        moment = moment + m
         gap_min = jnp.minimum(gap_min, g)
     body = jnp.concatenate([jnp.einsum("...ji,...j->...i", R, moment),
                             jnp.einsum("...ji,...j->...i", R, force)], axis=-1)
@@ -198,9 +218,11 @@ def _rows(pt: Point, base: np.ndarray, n: int):
 
 
 def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, qd):
-    """Pose, twist and Jacobian at every contact sample of soft link ``li``, each sample one
-    Magnus step (as ``kinematics._soft_link``'s) from the grid point before it, all samples at
-    once: the scalars are (n_c,) arrays. Returns (R, p, J, eta) in scalar algebra."""
+    """Pose and twist at every contact sample of soft link ``li``, each sample one Magnus step
+    (as ``kinematics._soft_link``'s) from the grid point before it, all samples at once: the
+    scalars are (n_c,) arrays. Returns (R, p, eta) in scalar algebra and ``pull``: body wrenches
+    at the samples (6 scalars) -> J^T w per sample (n scalars), J's columns never formed (the
+    step's transpose carries the wrench back instead, one vector instead of n columns)."""
     grid = grid_of(robot, li)
     Xc = np.asarray(robot.contact.material_points(link))
     n_c = len(Xc)
@@ -223,10 +245,26 @@ def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q,
     P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L, dtype)
     P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L, dtype)
     xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
-    R_s, p_s, S_cols, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), P1, P2,
-                                       jnp.asarray(dX, dtype) * L, with_psi=False)
-    R, p, J, eta, _ = advance((R, p, J, eta, zeros(6)), R_s, p_s, S_cols, list(range(s0, end)), S_qd, None, False)
-    return R, p, J, eta
+    h = jnp.asarray(dX, dtype) * L
+    R_s, p_s, _, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), [], [], h,
+                                  with_psi=False)
+    R, p, _, eta, _ = advance((R, p, [], eta, zeros(6)), R_s, p_s, [], [], S_qd, None, False)
+    c, half_h = lie.mul(lie.SQRT3 / 12.0, lie.mul(h, h)), lie.mul(0.5, h)
+    O = lie.vadd(lie.vscale(half_h, lie.vadd(xi1, xi2)), lie.vscale(c, lie.ad(xi1, xi2)))  # as magnus'
+
+    def pull(w):
+        # J = Ad_step^-1 (J_before + T(O) Z) with magnus' Z = h/2 (P1 + P2) + c (ad_xi1 P2 - ad_xi2 P1)
+        wb = lie.ad_inv_transpose(R_s, p_s, w)
+        z = lie.dexp_transpose(O, wb)
+        z1, z2 = lie.ad_transpose(xi1, z), lie.ad_transpose(xi2, z)
+        terms = [lie.dot(col, wb) for col in J]
+        for k, (a, b) in enumerate(zip(P1, P2)):
+            own = lie.add(lie.mul(half_h, lie.dot(lie.vadd(a, b), z)),
+                          lie.mul(c, lie.sub(lie.dot(b, z1), lie.dot(a, z2))))
+            terms[s0 + k] = lie.add(terms[s0 + k], own)
+        return terms
+
+    return R, p, eta, pull
 
 
 def _arrays(R, p, eta, n_c: int):
@@ -246,15 +284,18 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
             continue
         Xc = np.asarray(contact.material_points(link))
         n_c = len(Xc)
-        Rs, ps, J, etas = _soft_samples(robot, li, link, points, q, qd)
+        Rs, ps, etas, pull = _soft_samples(robot, li, link, points, q, qd)
         R, p, eta = _arrays(Rs, ps, etas, n_c)
         half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
         w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
-        w6 = tuple(w[:, k] for k in range(6))
-        for j, col in enumerate(J):
-            F[j] = lie.add(F[j], _sum(lie.dot(col, w6)))
+        terms = pull(tuple(w[:, k] for k in range(6)))
+        live = [j for j, x in enumerate(terms) if not lie.is_zero(x)]
+        if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
+            Fs = jnp.sum(jnp.stack([jnp.broadcast_to(terms[j], (n_c,)) for j in live], -1), axis=0)
+            for k, j in enumerate(live):
+                F[j] = lie.add(F[j], Fs[k])
         forces.append(f)
         gaps.append(g)
     n = len(robot.links)

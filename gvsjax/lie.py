@@ -288,12 +288,8 @@ def dexp(x: Vec, ys: Sequence[Vec]) -> list[Vec]:
     return dexp_and_rate(x, zeros(6), ys, rate_of=None)[0]
 
 
-def dexp_and_rate(x: Vec, xd: Vec, ys: Sequence[Vec], rate_of: Vec | None):
-    """T(x) y for each y in ys, and (d/ds T(x + s xd)) rate_of at s = 0.
-
-    The second result is what the recursion needs for psi = Jdot qd:
-    Tdot applied to Odot (``rate_of = xd``). It is None when ``rate_of`` is None.
-    """
+def _dexp_coefs(x: Vec, xd: Vec) -> list:
+    """The coefficients (c_k, their rates along xd) of T(x) = I + sum_k c_k ad_x^k."""
     w, wd = x[:3], xd[:3]
     u = dot(w, w)
     udot = mul(2.0, dot(w, wd))
@@ -312,7 +308,25 @@ def dexp_and_rate(x: Vec, xd: Vec, ys: Sequence[Vec], rate_of: Vec | None):
             coefs.append((add(cb, mul(u, ch)), add(rb, add(mul(udot, ch), mul(u, rh)))))
         else:
             coefs.append(_coef_and_rate(fn, u, udot))
+    return coefs
 
+
+def dexp_transpose(x: Vec, y: Vec) -> Vec:
+    """T(x)^T y: a wrench carried back through the tangent operator (its columns never formed)."""
+    acc, a_k = y, y
+    for c, _ in _dexp_coefs(x, zeros(6)):
+        a_k = ad_transpose(x, a_k)
+        acc = vadd(acc, vscale(c, a_k))
+    return acc
+
+
+def dexp_and_rate(x: Vec, xd: Vec, ys: Sequence[Vec], rate_of: Vec | None):
+    """T(x) y for each y in ys, and (d/ds T(x + s xd)) rate_of at s = 0.
+
+    The second result is what the recursion needs for psi = Jdot qd:
+    Tdot applied to Odot (``rate_of = xd``). It is None when ``rate_of`` is None.
+    """
+    coefs = _dexp_coefs(x, xd)
     outs = []
     for y in ys:
         acc, a_k = y, y
@@ -337,6 +351,13 @@ def ad_inv_apply(R: Mat, p: Vec, y: Vec) -> Vec:
     """Ad_g^-1 y for g = (R, p): (R^T y_w, R^T (y_v - p x y_w))."""
     yw, yv = y[:3], y[3:]
     return matTvec(R, yw) + matTvec(R, vsub(yv, cross(p, yw)))
+
+
+def ad_inv_transpose(R: Mat, p: Vec, w: Vec) -> Vec:
+    """(Ad_g^-1)^T w for g = (R, p): a wrench (moment, force) in g's frame carried to the frame g
+    is relative to: (R m + p x R f, R f)."""
+    m, f = matvec(R, w[:3]), matvec(R, w[3:])
+    return vadd(m, cross(p, f)) + f
 
 
 def compose(R: Mat, p: Vec, R2: Mat, p2: Vec) -> tuple[Mat, Vec]:

@@ -245,3 +245,25 @@ def test_a_scanned_link_touches_as_the_unrolled_one():
     assert out["scan"][1].min() < -1e-3 and np.abs(out["scan"][0]).max() > 10.0  # pressing
     for a, b in zip(out["scan"], out["unrolled"]):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_stacked_spheres_and_capsules_give_the_law_of_each_obstacle_alone():
+    """The law over stacks of static spheres and capsules (one component-wise pass) equals the sum
+    of the law over each obstacle alone, with friction, at pieces near, touching and inside them."""
+    rng = np.random.default_rng(0)
+    n_c = 9
+    p = jnp.asarray(rng.uniform(-0.2, 0.2, (n_c, 3)))
+    R = jnp.asarray(np.linalg.qr(rng.normal(size=(n_c, 3, 3)))[0])
+    eta = jnp.asarray(rng.normal(size=(n_c, 6)))
+    radius, half = jnp.full(n_c, 0.03), 0.02
+    lo, hi = jnp.full(n_c, -half).at[0].set(0.0), jnp.full(n_c, half).at[-1].set(0.0)
+    obstacles = (gv.Sphere((0.0, 0.05, 0.0), 0.1), gv.Capsule((-0.3, 0.0, 0.1), (0.3, 0.1, 0.0), 0.05),
+                 gv.Sphere((0.1, -0.1, 0.1), 0.08), gv.Capsule((0.0, -0.3, -0.1), (0.0, 0.3, -0.1), 0.02),
+                 gv.Plane((0.0, -0.15, 0.0)))
+    pen = contact.Penalty(stiffness=1e6, damping=1e3, smoothing=1e-3, friction=0.4)
+    w, f, g = contact.law(p, R, eta, radius, lo, hi, obstacles, pen, 0.0)
+    alone = [contact.law(p, R, eta, radius, lo, hi, (o,), pen, 0.0) for o in obstacles]
+    assert float(jnp.max(jnp.abs(f))) > 1.0 and float(jnp.min(g)) < 0.0  # some pieces do touch
+    np.testing.assert_allclose(w, sum(a[0] for a in alone), rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(f, sum(a[1] for a in alone), rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal(g, jnp.min(jnp.stack([a[2] for a in alone]), axis=0))
