@@ -10,6 +10,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pytest
 
 import gvsjax as gv  # noqa: F401  (XLA flags first)
 from gvsjax.tasks import make
@@ -40,6 +41,7 @@ def episode() -> dict[str, np.ndarray]:
     return {"q": q, "qd": qd, "gap": gap, "depth": depth, "reward": reward}
 
 
+@pytest.mark.extended
 def test_the_contact_rich_episode_matches_its_reference():
     ref = np.load(REFERENCE)
     out = episode()
