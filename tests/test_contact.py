@@ -228,6 +228,7 @@ def test_float32_run_with_contact_stays_float32_and_matches_float64():
 # a soft link visited by lax.scan touches as the unrolled one
 
 
+@pytest.mark.extended
 def test_a_scanned_link_touches_as_the_unrolled_one():
     """The same bent arm against a bar and a ball, its kinematics scanned or unrolled: the same
     contact forces, gaps and motion (the samples are read from the scan's stacked points)."""

@@ -62,7 +62,7 @@ def test_uniform_muscle_action_bends_the_weightless_arm_into_the_closed_form_arc
     assert abs(float(q[0])) < 1e-15  # no torsion
 
 
-@pytest.mark.slow
+@pytest.mark.extended
 def test_muscle_env_under_jit_and_vmap(env):
     P = env.default_params()
     assert P.arm.actuation == "muscle" and env.action_size == 12 and env.obs_size == make("track3d").obs_size

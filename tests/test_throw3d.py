@@ -107,6 +107,7 @@ def test_targets_are_on_the_court_and_reachable(small):
     assert not bool(info["valid"][0]) and float(reward[0]) == 0.0 and np.all(np.asarray(info["valid"][1:]))
 
 
+@pytest.mark.extended
 def test_action_mapping_and_gradient(small):
     env, params, _, _ = small
     a = jnp.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [3.0, -7.0, 0.5]])
