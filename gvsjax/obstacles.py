@@ -117,22 +117,31 @@ class Capsule:
         e = jnp.asarray(self.end, p.dtype) - jnp.asarray(self.start, p.dtype)
         ee = _dot(e, e)
         r0 = p - a
-        te, b1, b2 = _dot(t, e), _dot(t, r0), _dot(e, r0)
-        # closest points of the piece's line and the capsule's segment, then the piece clamped
-        sin2 = jnp.maximum(1.0 - te * te / ee, 0.0)
-        sigma = jnp.clip((b2 - b1 * te) / jnp.maximum(ee * sin2, TINY), 0.0, 1.0)
-        centre = sigma * te - b1
-        sigma = jnp.clip((centre * te + b2) / ee, 0.0, 1.0)
-        centre = sigma * te - b1
-        u = jnp.clip(centre, lo, hi)
-        sigma = jnp.clip((u * te + b2) / ee, 0.0, 1.0)
+        u, sigma, centre, sin2 = segment_closest(_dot(t, e), _dot(t, r0), _dot(e, r0), ee, lo, hi)
         d = r0 + u[..., None] * t - sigma[..., None] * e
         dist = _norm(d)
-        # along the piece the distance to the axis grows like sqrt(dist^2 + u^2 sin^2): a crossing
-        # bar is a profile of curvature sin^2 / dist; past the capsule's ends it is a sphere's
-        inside = (sigma > 0.0) & (sigma < 1.0)
-        curv = jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / dist
-        return Piece(u, dist - self.radius, d / dist[..., None], curv, centre, jnp.zeros_like(dist), v)
+        return Piece(u, dist - self.radius, d / dist[..., None], capsule_curvature(sigma, sin2, dist), centre,
+                     jnp.zeros_like(dist), v)
+
+
+def segment_closest(te, b1, b2, ee, lo, hi):
+    """The closest points of a piece p + u t (|t| = 1, u in [lo, hi]) and a segment a + sigma e
+    (sigma in [0, 1]) from te = t.e, b1 = t.(p - a), b2 = e.(p - a), ee = e.e: (u, sigma,
+    the unclamped u of the lines' closest approach, sin^2 of their angle). Layout-free scalars."""
+    sin2 = jnp.maximum(1.0 - te * te / ee, 0.0)
+    sigma = jnp.clip((b2 - b1 * te) / jnp.maximum(ee * sin2, TINY), 0.0, 1.0)
+    centre = sigma * te - b1
+    sigma = jnp.clip((centre * te + b2) / ee, 0.0, 1.0)
+    centre = sigma * te - b1
+    u = jnp.clip(centre, lo, hi)
+    return u, jnp.clip((u * te + b2) / ee, 0.0, 1.0), centre, sin2
+
+
+def capsule_curvature(sigma, sin2, dist):
+    """Along the piece the distance to the axis grows like sqrt(dist^2 + u^2 sin^2): a crossing bar
+    is a profile of curvature sin^2 / dist; past the capsule's ends it is a sphere's, 1 / dist."""
+    inside = (sigma > 0.0) & (sigma < 1.0)
+    return jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / dist
 
 
 @struct.dataclass

@@ -15,7 +15,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from gvsjax.obstacles import FLAT, TINY, Capsule, Sphere
+from gvsjax.obstacles import TINY, Capsule, Sphere, capsule_curvature, segment_closest
 
 
 def smooth_depth(gap, l):
@@ -58,18 +58,10 @@ def _piece(obs, p, t, lo, hi):
     e = tuple(e_arr[:, i] for i in range(3))
     ee = _dot(e, e)
     r0 = tuple(p[i] - a[:, i] for i in range(3))
-    te, b1, b2 = _dot(t, e), _dot(t, r0), _dot(e, r0)
-    sin2 = jnp.maximum(1.0 - te * te / ee, 0.0)
-    sigma = jnp.clip((b2 - b1 * te) / jnp.maximum(ee * sin2, TINY), 0.0, 1.0)
-    centre = sigma * te - b1
-    sigma = jnp.clip((centre * te + b2) / ee, 0.0, 1.0)
-    centre = sigma * te - b1
-    u = jnp.clip(centre, lo, hi)
-    sigma = jnp.clip((u * te + b2) / ee, 0.0, 1.0)
+    u, sigma, centre, sin2 = segment_closest(_dot(t, e), _dot(t, r0), _dot(e, r0), ee, lo, hi)
     d = tuple(r0[i] + u * t[i] - sigma * e[i] for i in range(3))
     dist = jnp.sqrt(_dot(d, d) + TINY * TINY)
-    inside = (sigma > 0.0) & (sigma < 1.0)
-    curv = jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / dist
+    curv = capsule_curvature(sigma, sin2, dist)
     return u, dist - jnp.asarray(obs.radius, dtype), tuple(x / dist for x in d), curv, centre
 
 
