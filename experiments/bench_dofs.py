@@ -13,7 +13,10 @@ the other benchmarks do (``bench_scaling``: n_modes + 2), so in both families th
 grow with the DoFs, as when a user refines a model. ``chain1`` is the same robot as ``rod0``.
 
 Each configuration is run with every soft link's ``SoftLink.recursion`` = "unrolled" and = "scan"
-(both compute the same sums; the tips must agree to ~1e-12 m). Measured for a jitted, vmapped
+(both compute the same sums; the tips must agree to ~1e-12 m). ``--recursions scan-scalar`` (or
+``unrolled-scalar``) runs that recursion with every SPD solve in scalar form, where from
+``linalg.STACKED_MIN_DOFS`` DoFs it would run on stacked arrays: the crossover of the two solve
+layouts. Measured for a jitted, vmapped
 ``gv.simulate(robot, T, n_steps=N, save_every=N, integrator="ars443", check_stability=False)``
 over a batch of durations T (N dt (1 + 0.2 i / (batch - 1)), dt = 1 ms) from a random bent
 state at rest (angular strains ~ N(0, 0.2^2), seed 0), at batch 1 and 1024:
@@ -39,6 +42,7 @@ recursion and batch, and the scan / unrolled ratios. ``--replot`` redraws the fi
     python experiments/bench_dofs.py --quick                          # rod0-1, chain1-2 (28 min at load 6)
     python experiments/bench_dofs.py                                  # everything (hours)
     python experiments/bench_dofs.py --configs rod2,rod3 --recursions scan --merge
+    python experiments/bench_dofs.py --configs rod1,rod2,rod3,chain2 --recursions scan-scalar --merge
     python experiments/bench_dofs.py --replot
 
 The load average is recorded with every row (``uptime``): on a shared machine the times are
@@ -66,12 +70,15 @@ import gvsjax as gv  # configures JAX (XLA flag, x64) before any computation
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_sim import load_average  # noqa: E402
 
-from gvsjax import integrators, scan  # noqa: E402
+from gvsjax import integrators, linalg, scan  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIG = os.path.join(ROOT, "figures")
 DT = 1e-3
 RECURSIONS = ("unrolled", "scan")
+# "<recursion>-scalar": that recursion with every SPD solve in scalar form (``linalg.STACKED_MIN_DOFS``
+# out of reach), to measure the crossover of the two solve layouts
+SCALAR = "-scalar"
 CONFIGS = tuple(f"rod{k}" for k in range(6)) + tuple(f"chain{k}" for k in range(1, 7))
 QUICK = ("rod0", "rod1", "chain1", "chain2")
 N_LANES = 16  # lanes of the big batch kept for the tip comparison
@@ -88,6 +95,9 @@ def build(config: str, recursion: str) -> gv.Robot:
         robot = gv.Robot(links=(link,) * k, gravity=9.81)
     else:
         raise ValueError(f"unknown configuration {config!r}; choose from {CONFIGS}")
+    recursion = recursion.removesuffix(SCALAR)
+    if recursion not in RECURSIONS:
+        raise ValueError(f"recursion={recursion!r}: expected one of {RECURSIONS}, optionally with {SCALAR!r}")
     return robot.replace(links=tuple(link.replace(recursion=recursion) for link in robot.links))
 
 
@@ -97,8 +107,9 @@ def describe(config: str) -> dict:
     return dict(config=config, family="rod" if config.startswith("rod") else "chain", dofs=robot.n_dofs,
                 n_links=len(links), order=max(links[0].basis.orders), n_gauss_per_link=links[0].n_gauss,
                 n_gauss_total=sum(link.n_gauss for link in links),
-                auto_recursion="scan" if scan.uses_scan(links[0]) else "unrolled",
-                ars443_layout="folded" if len(robot.free) >= integrators.FOLD_MIN_DOFS else "split")
+                auto_recursion="scan" if scan.uses_scan(links[-1], robot.n_dofs) else "unrolled",
+                ars443_layout=("stacked" if len(robot.free) >= linalg.STACKED_MIN_DOFS
+                               else "folded" if len(robot.free) >= integrators.FOLD_MIN_DOFS else "split"))
 
 
 def initial_state(robot: gv.Robot) -> np.ndarray:
@@ -128,8 +139,10 @@ def planned_bytes(compiled) -> dict:
 def measure(config: str, recursion: str, batches, n_steps: int, repeats: int, out: str) -> None:
     """One (configuration, recursion) in this process; ``out`` is rewritten after each batch."""
     robot = build(config, recursion)
+    if recursion.endswith(SCALAR):
+        linalg.STACKED_MIN_DOFS = 10**9
     q0 = jnp.asarray(initial_state(robot))
-    row = dict(describe(config), recursion=recursion, uses_scan=scan.uses_scan(robot.links[0]),
+    row = dict(describe(config), recursion=recursion, uses_scan=scan.uses_scan(robot.links[-1], robot.n_dofs),
                n_steps=n_steps, dt=DT, repeats=repeats, load_start=load_average(), batches=[])
 
     def run(T):
@@ -264,7 +277,7 @@ def plot(res, path) -> None:
                                                                                           np.nan) / 2**20, None),
               ("step time, batch 1 (ms per step)", lambda b, r: b["step_s"] * 1e3, 1),
               ("step time, batch 1024 (ms per step)", lambda b, r: b["step_s"] * 1e3, 1024)]
-    colour = {"unrolled": "C0", "scan": "C1"}
+    colour = {"unrolled": "C0", "scan": "C1", "scan-scalar": "C2", "unrolled-scalar": "C3"}
     marker = {"rod": "o", "chain": "s"}
     fig, axs = plt.subplots(2, 2, figsize=(10, 7.5))
     for ax, (title, key, only) in zip(axs.flat, panels):

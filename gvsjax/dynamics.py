@@ -22,7 +22,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import contact, lie, tendons
+from gvsjax import contact, lie, linalg, tendons
 from gvsjax.kinematics import coords, forward, point_at, rows
 from gvsjax.lie import add, const, dot, mul, sub, total, vadd
 from gvsjax.magnus import Point, grid_of
@@ -268,7 +268,7 @@ def split_solve(robot: Robot, M, F, qdd_a: Sequence) -> list:
     Mf = lambda i, j: M[i][j] if i >= j else M[j][i]  # noqa: E731 (symmetric lookup)
     rhs = [sub(F[i], total([mul(Mf(i, k), x) for k, x in zip(a, qdd_a)])) for i in u]
     A = [[Mf(i, j) for j in u] for i in u]
-    return lie.solve_spd(A, rhs)
+    return linalg.solve_spd(A, rhs)
 
 
 def prescribed_effort(robot: Robot, M, F, qdd: Sequence) -> list:

@@ -34,7 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import lie
+from gvsjax import lie, linalg
 
 
 class Integrator(NamedTuple):
@@ -143,7 +143,7 @@ def _imex_euler(system, t, q, qd, dt):
         lie.sub(lie.mul(dt, f[i]), lie.mul(dt * dt, lie.total([lie.mul(K[i][j], qd_s[j]) for j in range(n)])))
         for i in range(n)
     ]
-    dv = tuple(lie.as_array(x) for x in lie.solve_spd(A, rhs))
+    dv = tuple(lie.as_array(x) for x in linalg.solve_spd(A, rhs))
     qd1 = _axpy(qd, 1.0, dv)
     return _axpy(q, dt, qd1), qd1
 
@@ -173,8 +173,12 @@ def _ars443(system, t, q, qd, dt):
     four evaluations of the dynamics run in one loop (``_ars443_folded``: the
     dynamics traced once, half the compile time of a 3D robot and a faster
     step); below, the step's start is evaluated before a 3-long loop
-    (``_ars443_split``: the fastest step for small planar robots).
+    (``_ars443_split``: the fastest step for small planar robots). From
+    ``linalg.STACKED_MIN_DOFS`` DoFs the folded loop's matrices are arrays
+    (``_ars443_stacked``).
     """
+    if len(q) >= linalg.STACKED_MIN_DOFS:
+        return _ars443_stacked(system, t, q, qd, dt)
     fn = _ars443_folded if len(q) >= FOLD_MIN_DOFS else _ars443_split
     return fn(system, t, q, qd, dt)
 
@@ -207,14 +211,14 @@ def _ars443_folded(system, t, q, qd, dt):
         # at the step's start the explicit part is M0^-1 (f + K q + D qd); later f's own
         elastic = [lie.mul(jnp.where(first, 1.0, 0.0).astype(dtype), lie.add(x, y))
                    for x, y in zip(lie.matvec(K, q), lie.matvec(D, qd))]
-        e = arr(lie.solve_spd(M, [lie.add(fi, el) for fi, el in zip(f, elastic)])) - g_v[i]
+        e = arr(linalg.solve_spd(M, [lie.add(fi, el) for fi, el in zip(f, elastic)])) - g_v[i]
         A = [[lie.add(lie.add(M0[r][c], lie.mul(a, D[r][c])), lie.mul(a * a, K[r][c])) for c in range(n)]
              for r in range(n)]
         Yq = q0 + dt * (tab_i[i] @ g_q[:4])
         Yv = qd0 + dt * (tab_e[i] @ e_v[:4] + tab_e[i, i] * e + tab_i[i] @ g_v[:4])
         M0_rows = tuple(map(tuple, M0))
         m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(lie.matvec(M0_rows, tuple(Yv)), lie.matvec(K, tuple(Yq)))]
-        v = arr(lie.solve_spd(A, m))
+        v = arr(linalg.solve_spd(A, m))
         M0_out = [jnp.asarray(lie.as_array(M0[r][c]), dtype) for r, c in lower]
         return (g_q.at[i + 1].set(v), g_v.at[i + 1].set((v - Yv) / a), e_v, _pack(e), M0_out, Yq + a * v, v), None
 
@@ -223,6 +227,39 @@ def _ars443_folded(system, t, q, qd, dt):
     carry0 = (zeros, zeros, zeros, _pack(jnp.zeros(n, dtype)), M0_init, q0, qd0)
     (*_, q1, qd1), _ = jax.lax.scan(body, carry0, jnp.arange(4))
     return tuple(q1[k] for k in range(n)), tuple(qd1[k] for k in range(n))  # stiffly accurate: the last stage
+
+
+def _ars443_stacked(system, t, q, qd, dt):
+    """``_ars443_folded`` with M0, K and D as (n, n) arrays and the solves stacked
+    (``linalg.ldl_solve``): for many DoFs the scalar algebra's n^2 traced products
+    (n^3 in the solves) cost more compile time than the arithmetic they save."""
+    n = len(q)
+    a = 0.5 * dt
+    dtype = jnp.result_type(*q)
+    tab_e, tab_i, tab_c = (jnp.asarray(x, dtype) for x in (_ARS443_E, _ARS443_I, _ARS443_C))
+    t_eval = t + jnp.concatenate([jnp.zeros(1, dtype), tab_c[:3]]) * dt
+    arr = lambda xs: jnp.stack([jnp.asarray(lie.as_array(x), dtype) for x in xs])  # noqa: E731
+    mv = lambda A, x: jnp.sum(A * x, axis=-1)  # elementwise: fuses, where a batched dot would not  # noqa: E731
+    q0, qd0 = jnp.stack(q), jnp.stack(qd)
+
+    def body(carry, i):
+        g_q, g_v, e_v, e_prev, M0_prev, qi, vi = carry  # as in _ars443_folded
+        e_v = e_v.at[jnp.maximum(i - 1, 0)].set(arr(_unpack(e_prev, n)))
+        M, f, K, D = system.parts(t_eval[i], tuple(qi[k] for k in range(n)), tuple(vi[k] for k in range(n)))
+        M, K, D = (linalg.symmetric(X, dtype) for X in (M, K, D))
+        first = i == 0
+        M0 = jnp.where(first, M, M0_prev)
+        elastic = jnp.where(first, mv(K, q0) + mv(D, qd0), jnp.zeros(n, dtype))
+        e = linalg.ldl_solve(M, arr(f) + elastic) - g_v[i]
+        Yq = q0 + dt * (tab_i[i] @ g_q[:4])
+        Yv = qd0 + dt * (tab_e[i] @ e_v[:4] + tab_e[i, i] * e + tab_i[i] @ g_v[:4])
+        v = linalg.ldl_solve(M0 + a * D + (a * a) * K, mv(M0, Yv) - a * mv(K, Yq))
+        return (g_q.at[i + 1].set(v), g_v.at[i + 1].set((v - Yv) / a), e_v, _pack(e), M0, Yq + a * v, v), None
+
+    zeros = jnp.zeros((5, n), dtype)
+    carry0 = (zeros, zeros, zeros, _pack(jnp.zeros(n, dtype)), jnp.zeros((n, n), dtype), q0, qd0)
+    (*_, q1, qd1), _ = jax.lax.scan(body, carry0, jnp.arange(4))
+    return tuple(q1[k] for k in range(n)), tuple(qd1[k] for k in range(n))
 
 
 def _ars443_split(system, t, q, qd, dt):
@@ -239,14 +276,14 @@ def _ars443_split(system, t, q, qd, dt):
     zeros = jnp.zeros((4, n), dtype)
     # stage slots (4 x n): implicit q' and qd', explicit qd' (q' has no explicit part).
     # Slot 0 of the implicit parts has weight 0 in every stage, so it stays empty.
-    e_v0 = _pack(lie.solve_spd(M, [lie.add(fi, e) for fi, e in zip(f, elastic)]))
+    e_v0 = _pack(linalg.solve_spd(M, [lie.add(fi, e) for fi, e in zip(f, elastic)]))
     q0, qd0 = jnp.stack(q), jnp.stack(qd)
 
     def solve_stage(i, g_q, g_v, e_v):
         Yq = q0 + dt * (tab_i[i] @ g_q)
         Yv = qd0 + dt * (tab_e[i] @ e_v + tab_i[i] @ g_v)
         m = [lie.sub(mv, lie.mul(a, kq)) for mv, kq in zip(lie.matvec(M, tuple(Yv)), lie.matvec(K, tuple(Yq)))]
-        v = arr(lie.solve_spd(A, m))
+        v = arr(linalg.solve_spd(A, m))
         return Yq + a * v, v, Yv
 
     # Each stage's acceleration leaves the stage packed (``_pack``) and enters its

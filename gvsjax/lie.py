@@ -365,38 +365,4 @@ def compose(R: Mat, p: Vec, R2: Mat, p2: Vec) -> tuple[Mat, Vec]:
     return matmul(R, R2), vadd(p, matvec(R, p2))
 
 
-# ----------------------------------------------------------------------------
-# small SPD solves in scalar form
-
-
-def solve_spd(A: Sequence[Sequence[Scalar]], b: Sequence[Scalar]) -> list[Scalar]:
-    """Solve A x = b for a small symmetric positive definite A (Cholesky, LDL^T form).
-
-    Only the lower triangle of A is read.
-    """
-    n = len(b)
-    L = [[0] * n for _ in range(n)]
-    d = [0] * n
-    for j in range(n):
-        dj = A[j][j]
-        for k in range(j):
-            dj = sub(dj, mul(mul(L[j][k], L[j][k]), d[k]))
-        d[j] = dj
-        inv_dj = 1.0 / dj
-        for i in range(j + 1, n):
-            lij = A[i][j]
-            for k in range(j):
-                lij = sub(lij, mul(mul(L[i][k], L[j][k]), d[k]))
-            L[i][j] = mul(lij, inv_dj)
-    y = list(b)
-    for i in range(n):
-        for k in range(i):
-            y[i] = sub(y[i], mul(L[i][k], y[k]))
-    x = [mul(y[i], 1.0 / d[i]) if not is_zero(y[i]) else 0 for i in range(n)]
-    for i in reversed(range(n)):
-        for k in range(i + 1, n):
-            x[i] = sub(x[i], mul(L[k][i], x[k]))
-    return x
-
-
 SQRT3 = math.sqrt(3.0)

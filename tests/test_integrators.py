@@ -99,9 +99,10 @@ def test_ars443_beyond_rk4_stability():
                                    pytest.param(gv.rod_3d(order=(0, 0, 0, -1, -1, -1), n_gauss=2, gravity=9.81),
                                                 marks=pytest.mark.extended)],
                          ids=["paper_arm_prescribed_base", "twisting_bending_rod"])
-def test_ars443_folded_and_split_layouts_are_one_scheme(robot):
-    """``ars443`` picks a loop layout by the number of free DoFs; both layouts must be the
-    same arithmetic: one step from a moving state agrees to rounding."""
+def test_ars443_layouts_are_one_scheme(robot):
+    """``ars443`` picks a loop layout by the number of free DoFs (split, folded, folded with
+    stacked arrays); all must be the same arithmetic: one step from a moving state agrees
+    to rounding."""
     law = lambda t: jnp.array([1.2 * t**2]) if robot.prescribed else jnp.zeros(0)  # noqa: E731
     system = FreeDynamics(robot, law)
     rng = np.random.default_rng(3)
@@ -112,7 +113,8 @@ def test_ars443_folded_and_split_layouts_are_one_scheme(robot):
     def one_step(fn):
         return jax.jit(lambda q, qd: fn(system, t, q, qd, dt))(q, qd)
 
-    a, b = (np.concatenate([np.stack(x) for x in one_step(fn)])
-            for fn in (integrators._ars443_folded, integrators._ars443_split))
+    a, b, c = (np.concatenate([np.stack(x) for x in one_step(fn)])
+               for fn in (integrators._ars443_folded, integrators._ars443_split, integrators._ars443_stacked))
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+    np.testing.assert_allclose(c, b, rtol=0, atol=1e-12 * np.abs(b).max())
     assert np.abs(b[n:] - np.stack(qd)).max() > 1e-3  # the step moved the state

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1] / "gvsjax"
 # Layer 0 holds utilities that import nothing from gvsjax.
 LAYERS = {
     "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding", "gvsjax.distributed"]),
-    "lie": (1, ["gvsjax.lie"]),
+    "lie": (1, ["gvsjax.lie", "gvsjax.linalg"]),
     "model": (2, ["gvsjax.model", "gvsjax.obstacles", "gvsjax.robots", "gvsjax.validation", "gvsjax.loads"]),
     "kinematics": (3, ["gvsjax.magnus", "gvsjax.scan", "gvsjax.kinematics"]),
     "dynamics": (4, ["gvsjax.muscles", "gvsjax.tendons", "gvsjax.stacked_contact", "gvsjax.contact",

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from helpers import raises_naming
 
-from gvsjax import dynamics, lie, scan
+from gvsjax import dynamics, lie, linalg, scan
 from gvsjax.validation import check_robot
 
 Z, Y = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)
@@ -62,10 +62,16 @@ def _outputs(robot, q, qd):
                 energy=jnp.stack(list(dynamics.energy(robot, q, qd).values())))
 
 
-def test_auto_scans_the_large_spatial_link_only():
+def test_auto_scans_links_whose_jacobian_is_large():
     assert scan.uses_scan(gv.rod_3d(order=1, n_gauss=3).links[0])  # 12 strain DoFs
     assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=3).links[0])  # 6: unrolled steps faster
     assert not scan.uses_scan(gv.paper_arm().links[0])
+    assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=1).links[0], 12)  # one Gauss point: nothing to loop over
+    # a chain of 6-DoF links: the second carries 12 Jacobian columns
+    link = gv.rod_3d(length=0.5, order=0, n_gauss=2).links[0]
+    assert not scan.uses_scan(link, 6) and scan.uses_scan(link, 12)
+    assert scan.uses_scan(link.replace(recursion="scan"), 6)
+    assert not scan.uses_scan(link.replace(recursion="unrolled"), 12)
 
 
 @pytest.mark.extended
@@ -93,7 +99,7 @@ def test_scan_matches_under_jit_vmap_and_grad():
         r = r.replace(links=(r.links[0].replace(material=r.links[0].material.replace(youngs_modulus=E)),
                              *r.links[1:]))
         M, F = dynamics.mass_and_forces(r, [q[i] for i in range(n)], [qd[i] for i in range(n)])
-        acc = lie.solve_spd(M, F)  # linear in E: squared, so the gradient differs between Es
+        acc = linalg.solve_spd(M, F)  # linear in E: squared, so the gradient differs between Es
         return lie.as_array(acc[0]) ** 2 + gv.tip_state(r, q, qd)[0][0]
 
     Es = jnp.array([1e6, 4e6])
