@@ -96,7 +96,7 @@ def build(config: str, recursion: str) -> gv.Robot:
     else:
         raise ValueError(f"unknown configuration {config!r}; choose from {CONFIGS}")
     recursion = recursion.removesuffix(SCALAR)
-    if recursion not in RECURSIONS:
+    if recursion not in (*RECURSIONS, "auto"):
         raise ValueError(f"recursion={recursion!r}: expected one of {RECURSIONS}, optionally with {SCALAR!r}")
     return robot.replace(links=tuple(link.replace(recursion=recursion) for link in robot.links))
 
@@ -311,12 +311,13 @@ def plot(res, path) -> None:
         ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
         ax.xaxis.set_minor_locator(ticker.NullLocator())
         lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi * (hi / lo) ** 0.7)  # headroom: the legend sits above the curves
         ax.yaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0,) if hi / lo > 1e3 else (1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
         ax.yaxis.set_minor_locator(ticker.NullLocator())
         ax.grid(True, which="major", alpha=0.3)
         if curves:
-            ax.legend(fontsize=7, framealpha=0.5)  # the targets (zorder 6) show through
+            ax.legend(fontsize=6.5, framealpha=0.5, loc="upper left", ncol=2)  # the targets (zorder 6) show through
     quick = " (--quick)" if res.get("quick") else ""
     fig.suptitle(f"Spatial rods, ars443, {res.get('n_steps')} steps of {DT * 1e3:g} ms{quick}; "
                  f"load {res.get('load_start', '').split('load average:')[-1].strip()}", fontsize=9)
