@@ -36,7 +36,8 @@ def solve_spd(A: Sequence[Sequence[Scalar]], b: Sequence[Scalar]) -> list[Scalar
     """
     n = len(b)
     if n >= STACKED_MIN_DOFS and not all(is_zero(x) for x in b):
-        x = ldl_solve(*_stack(A, b))
+        dtype = jnp.result_type(*(as_array(x) for row in A for x in row), *(as_array(x) for x in b))
+        x = ldl_solve(symmetric(A, dtype), jnp.stack([_entry(v, dtype) for v in b]))
         return [x[i] for i in range(n)]
     return _solve_scalar(A, b)
 
@@ -71,19 +72,14 @@ def ldl_solve(A: jnp.ndarray, b: jnp.ndarray) -> jnp.ndarray:
 
 
 def symmetric(A: Sequence[Sequence[Scalar]], dtype) -> jnp.ndarray:
-    """The symmetric (n, n) array of a scalar-algebra matrix whose lower triangle is given."""
+    """The symmetric (n, n) array of a scalar-algebra matrix; only its lower triangle is read."""
     n = len(A)
-    entry = lambda x: jnp.zeros((), dtype) if is_zero(x) else jnp.asarray(as_array(x), dtype)  # noqa: E731
-    return jnp.stack([jnp.stack([entry(A[i][j] if j <= i else A[j][i]) for j in range(n)]) for i in range(n)])
+    return jnp.stack([jnp.stack([_entry(A[i][j] if j <= i else A[j][i], dtype) for j in range(n)]) for i in range(n)])
 
 
-def _stack(A, b) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """The lower triangle of scalar-algebra A (upper entries zero) and b as arrays."""
-    n = len(b)
-    dtype = jnp.result_type(*(as_array(x) for row in A for x in row), *(as_array(x) for x in b))
-    entry = lambda x: jnp.zeros((), dtype) if is_zero(x) else jnp.asarray(as_array(x), dtype)  # noqa: E731
-    rows = [jnp.stack([entry(A[i][j]) if j <= i else jnp.zeros((), dtype) for j in range(n)]) for i in range(n)]
-    return jnp.stack(rows), jnp.stack([entry(x) for x in b])
+def _entry(x: Scalar, dtype) -> jnp.ndarray:
+    """A scalar-algebra value (a structural zero included) as a JAX scalar of ``dtype``."""
+    return jnp.zeros((), dtype) if is_zero(x) else jnp.asarray(as_array(x), dtype)
 
 
 def _solve_scalar(A, b) -> list[Scalar]:
