@@ -84,7 +84,7 @@ def _magnus_step(state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
 
 
 def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
-    if scan.uses_scan(link, s0 + len(qs)):
+    if scan.uses_scan(link, robot.n_dofs):
         return scan.soft_link(robot, li, link, qs, qds, s0, state, points, with_psi)
     grid = grid_of(robot, li)
     L = link.length

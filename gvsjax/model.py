@@ -197,9 +197,8 @@ class SoftLink:
     "unrolled" (one traced Magnus step per interval: the fastest steps for small
     links), "scan" (one step inside ``lax.scan``: a compiled program whose size
     does not grow with ``n_gauss`` or the DoFs, for large spatial links) or
-    "auto" (scan once the link's Jacobian has 12 columns, its own DoFs and
-    those of the links before it, and the link 2 Gauss points). The results
-    agree to rounding.
+    "auto" (scan once the robot has 12 DoFs and the link 2 Gauss points). The
+    results agree to rounding.
 
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
     by default (SoRoSim's convention); ``damping_factors`` scales each entry

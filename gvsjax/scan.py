@@ -21,19 +21,23 @@ from gvsjax.lie import mul, vadd, zeros
 from gvsjax.magnus import XI_STAR, Point, grid_of, magnus, rest_strain, zanna_points
 from gvsjax.model import SoftLink
 
-# "auto" scans a soft link whose Jacobian carries at least this many columns (its own DoFs and
-# those of the links before it) and that has at least this many Gauss points (docs/speed.md)
+# "auto" scans a soft link of a robot with at least this many DoFs when the link has at least
+# this many Gauss points (docs/speed.md)
 SCAN_MIN_DOFS, SCAN_MIN_GAUSS = 12, 2
 
 
-def uses_scan(link: SoftLink, n_cols: int | None = None) -> bool:
+def uses_scan(link: SoftLink, n_dofs: int | None = None) -> bool:
     """Whether a soft link's sample points are visited by ``lax.scan`` (one compiled
     Magnus step) rather than unrolled (one per interval); see ``SoftLink.recursion``.
-    ``n_cols``: the DoFs the link's Jacobian depends on (default: the link's own)."""
+    ``n_dofs``: the DoFs of the robot the link belongs to (default: the link's own).
+
+    The robot's size decides, not the link's: every unrolled sample point feeds
+    scalar chains into all n^2 entries of M, so in a large robot even a small
+    link's unrolled pass costs more compile time than it saves run time."""
     if link.recursion != "auto":
         return link.recursion == "scan"
-    n_cols = link.basis.n_dofs if n_cols is None else n_cols
-    return n_cols >= SCAN_MIN_DOFS and link.n_gauss >= SCAN_MIN_GAUSS
+    n_dofs = link.basis.n_dofs if n_dofs is None else n_dofs
+    return n_dofs >= SCAN_MIN_DOFS and link.n_gauss >= SCAN_MIN_GAUSS
 
 
 def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from helpers import raises_naming
 
-from gvsjax import dynamics, lie, linalg, scan
+from gvsjax import dynamics, kinematics, lie, linalg, scan
 from gvsjax.validation import check_robot
 
 Z, Y = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)
@@ -62,16 +62,23 @@ def _outputs(robot, q, qd):
                 energy=jnp.stack(list(dynamics.energy(robot, q, qd).values())))
 
 
-def test_auto_scans_links_whose_jacobian_is_large():
+def test_auto_scans_the_links_of_large_robots():
     assert scan.uses_scan(gv.rod_3d(order=1, n_gauss=3).links[0])  # 12 strain DoFs
     assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=3).links[0])  # 6: unrolled steps faster
     assert not scan.uses_scan(gv.paper_arm().links[0])
     assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=1).links[0], 12)  # one Gauss point: nothing to loop over
-    # a chain of 6-DoF links: the second carries 12 Jacobian columns
+    # a link of 6 DoFs in a chain of two: every link of the 12-DoF robot is scanned
     link = gv.rod_3d(length=0.5, order=0, n_gauss=2).links[0]
     assert not scan.uses_scan(link, 6) and scan.uses_scan(link, 12)
     assert scan.uses_scan(link.replace(recursion="scan"), 6)
     assert not scan.uses_scan(link.replace(recursion="unrolled"), 12)
+    # the kinematic pass asks with the robot's DoFs: both links come back as one stacked point each
+    chain2 = gv.Robot(links=(link, link))
+    z = [0.0] * chain2.n_dofs
+    stacked = [p.link for p in kinematics.forward(chain2, z, z) if np.ndim(p.X) == 1]
+    assert stacked == [0, 1]
+    one = gv.Robot(links=(link,))
+    assert not any(np.ndim(p.X) for p in kinematics.forward(one, z[:6], z[:6]))
 
 
 @pytest.mark.extended
