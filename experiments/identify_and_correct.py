@@ -290,7 +290,7 @@ def plot(res: dict, out: str) -> None:
         for x in (1.0, 10.0):
             ax.axvline(x, color="0.6", lw=0.8, ls=":")
         ax.set(xscale="log", xlabel="miss on the true arm (cm)", ylabel=f"targets (%, of {n})")
-        ax.set_title(f"true arm: {what}, E x{f['E']}, eta x{f['eta']}; {c['gn_iters']} Gauss-Newton steps "
+        ax.set_title(f"true arm: {what}, E x{f['E']}, eta x{f['eta']}; {c['gn_iters']} Gauss-Newton steps\n"
                      "in gvsjax's 2-mode model", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
