@@ -27,9 +27,10 @@ def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path) 
         ax.axhline(level, color="tab:green", lw=0.8, ls=":")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("tip-to-target distance [cm]")
-    ax.set_ylim(0, max(10.0, float(np.nanpercentile(cm, 99)), float(np.median(100 * rest, 0).max())) * 1.05)
+    # headroom above the curves for the legend, so it hides none of them
+    ax.set_ylim(0, max(10.0, float(np.nanpercentile(cm, 99)), float(np.median(100 * rest, 0).max())) * 1.3)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right")
+    ax.legend(loc="upper center", ncol=3, fontsize=8)
     ax.set_title(f"tracking over {distance.shape[0]} episodes")
     return plots.save(fig, path)
 
