@@ -103,7 +103,7 @@ def episode_gif(path, robot: Robot, q: np.ndarray, tilt: np.ndarray, torque: np.
     import jax
 
     shapes = np.asarray(jax.jit(jax.vmap(lambda x: backbone(robot, x)))(q))
-    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    fig, ax = plt.subplots(figsize=(4.5, 4.5), layout="constrained")  # keeps the axis labels in the frame
 
     def frame(k):
         ax.clear()
