@@ -117,6 +117,27 @@ def test_upright_summary_by_hand():
     np.testing.assert_allclose(s["last_rms_deg"][0], 2.0)
 
 
+def test_reward_by_hand():
+    """Values of the reward at tilts and speeds worked out by hand (see ``bal.reward``'s formula)."""
+    P = bal.BalanceParams()
+    b, cone = P.upright_bonus, math.radians(P.upright_deg)
+
+    def r(tilt_deg, speed=0.0, a=0.0):
+        t = math.radians(tilt_deg)
+        tip = jnp.array([math.sin(t), math.cos(t), 0.0])  # 1 m from the base, tilted by t from straight up
+        return float(bal.reward(P, tip, jnp.array([speed, 0.0, 0.0]), jnp.asarray(a)))
+
+    assert r(0.0) == pytest.approx(1.0, abs=1e-12)
+    assert r(180.0) == pytest.approx(0.0, abs=1e-12)  # hanging still earns nothing
+    assert r(P.upright_deg) == pytest.approx((1 - b) * (1 - cone / math.pi) + b * math.exp(-1.0), rel=1e-9)
+    assert r(90.0) == pytest.approx((1 - b) * 0.5, rel=1e-9)  # the bonus is gone far from upright
+    assert r(0.0, speed=P.speed_scale) == pytest.approx(0.5, rel=1e-9)
+    assert r(0.0, a=1.0) == pytest.approx(1.0 - P.action_cost, rel=1e-9)
+    # sharp near upright, where 1 - tilt / pi alone changes by 0.3% between 0.5 and 1 degree
+    assert r(0.5) - r(1.0) > 0.01
+    assert all(0.0 <= r(t, 3.0 * f, f) <= 1.0 for t in range(0, 181, 15) for f in (0.0, 0.5, 1.0))
+
+
 def test_env_under_jit_and_vmap(env):
     P = env.default_params()
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
@@ -149,6 +170,7 @@ def test_bad_input_is_refused_before_compiling(env):
     raises_naming("n_modes=2", env.reset, key, P.replace(arm=gv.paper_arm(base="torque", n_modes=3)))
     raises_naming("torque_max", env.reset, key, P.replace(torque_max=0.0))
     raises_naming("start_rate", env.reset, key, P.replace(start_rate=-1.0))
+    raises_naming("upright_bonus", env.reset, key, P.replace(upright_bonus=1.5))
     raises_naming("episode_steps", env.reset, key, P.replace(episode_steps=100))
     _, s = env.reset(key, P)
     raises_naming("expected (1,)", env.step, key, s, jnp.zeros(2), P)

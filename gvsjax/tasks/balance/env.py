@@ -12,8 +12,11 @@ The *tilt* is the angle between the base-to-tip line and straight up, in [0, pi]
 (pi: hanging). Observation (14,): cos and sin of the base angle, its rate / 10,
 the curvature coefficients and their rates / 10, the tip's position (m) and
 velocity / 5 (m/s), the tilt / pi, the last action and the fraction of the
-episode left. Reward per step, in [0, 1]: (1 - tilt / pi) / (1 + (v / speed_scale)^2)
-x (1 - action_cost a^2), v the tip's speed. Its factors only scale the uprightness
+episode left. Reward per step, in [0, 1]: u / (1 + (v / speed_scale)^2)
+x (1 - action_cost a^2), v the tip's speed, with the uprightness
+u = (1 - b)(1 - tilt / pi) + b exp(-(tilt / upright_deg)^2), b = ``upright_bonus``:
+the first term pays for every degree of the swing, the second tells 1 degree
+from 5, where the first hardly changes. Its factors only scale the uprightness
 down, so no cost makes hanging still (reward 0) better than starting to swing;
 additive costs do, and PPO then stays hanging. The speed factor makes spinning the
 arm round and round (a mean of 1/2 at most, ~0.1 at its speed) a poor substitute
@@ -76,10 +79,11 @@ def observe(state: BalanceState, params: BalanceParams) -> jax.Array:
 
 
 def reward(params: BalanceParams, tip, tip_velocity, action) -> jax.Array:
-    """The uprightness 1 - tilt / pi scaled down by the tip's speed and the action (see the module
-    docstring)."""
+    """The uprightness scaled down by the tip's speed and the action (see the module docstring)."""
     speed2 = jnp.sum(tip_velocity**2) / params.speed_scale**2
-    return (1.0 - tilt(tip) / jnp.pi) / (1.0 + speed2) * (1.0 - params.action_cost * action**2)
+    up, b = tilt(tip), params.upright_bonus
+    upright = (1.0 - b) * (1.0 - up / jnp.pi) + b * jnp.exp(-((up / jnp.deg2rad(params.upright_deg)) ** 2))
+    return upright / (1.0 + speed2) * (1.0 - params.action_cost * action**2)
 
 
 def check(params: BalanceParams, episode_length: int) -> None:
@@ -103,8 +107,10 @@ def check(params: BalanceParams, episode_length: int) -> None:
         value = getattr(params, name)
         if isinstance(value, (int, float)) and not value >= 0:
             raise ValueError(f"BalanceParams.{name}={value!r} must be >= 0")
-    if isinstance(params.action_cost, (int, float)) and not 0 <= params.action_cost <= 1:
-        raise ValueError(f"BalanceParams.action_cost={params.action_cost!r} must be in [0, 1]")
+    for name in ("action_cost", "upright_bonus"):
+        value = getattr(params, name)
+        if isinstance(value, (int, float)) and not 0 <= value <= 1:
+            raise ValueError(f"BalanceParams.{name}={value!r} must be in [0, 1]")
 
 
 class Balance(Environment):

@@ -31,6 +31,8 @@ class BalanceParams:
     upright_deg: float = 5.0  # success: the tip within this angle of straight above the base
     action_cost: float = 0.2  # reward x (1 - action_cost a^2), in [0, 1]
     speed_scale: float = 2.0  # m/s: reward / (1 + (tip speed / speed_scale)^2)
+    # the uprightness's share that is exp(-(tilt / upright_deg)^2), sharp where 1 - tilt / pi is flat
+    upright_bonus: float = 0.5
     # ars443 steps per control step (experiments/balance_substeps.py)
     n_substeps: int = struct.field(pytree_node=False, default=4)
     integrator: str = struct.field(pytree_node=False, default="ars443")
