@@ -180,7 +180,7 @@ def test_the_baseline_hits_table_targets_through_the_simulator(small):
     keys = jax.random.split(jax.random.PRNGKey(5), 8)
     _, state = reset(keys, params)
     r = baseline.solve_targets(params, np.asarray(state.target), batch=8)
-    assert np.max(r["miss"]) < 1e-3
+    assert np.max(r["miss"]) < 1e-2
     _, _, _, _, info = step(keys, state, jnp.asarray(r["action"]), params)
     np.testing.assert_allclose(np.asarray(info["cost"]), r["miss"], atol=1e-6)
     # four steps from actions near the table's (a policy's, say) close the gap
@@ -210,3 +210,20 @@ def test_the_planner_falls_back_where_gauss_newton_sticks():
     # the converged targets stop stepping: 12 steps at most, fewer where the start is close
     assert r["steps"].max() <= 12 and r["steps"][3] < r["steps"][0]
 
+
+@pytest.mark.extended
+def test_the_planner_aims_table_targets_through_the_simulator(small):
+    """``baseline.plan`` from actions near the table's (a policy's, say), 2 cm or more off, hits
+    targets drawn by ``reset`` within 1 cm and ends no worse than it started; its misses are the
+    env's. Extended: compiling the gradient through the arm takes a minute or more on 2 cores."""
+    from gvsjax.tasks.throw3d import baseline
+
+    env, params, reset, step = small
+    keys = jax.random.split(jax.random.PRNGKey(7), 4)
+    _, state = reset(keys, params)
+    near = np.clip(np.asarray(state.source_action) + np.array([0.08, -0.1, 0.05]), -1, 1)
+    r = baseline.plan(params, near, np.asarray(state.target), batch=4)
+    assert np.all(r["miss"] <= r["start_miss"]) and np.min(r["start_miss"]) > 0.02
+    assert np.max(r["miss"]) < 1e-2
+    _, _, _, _, info = step(keys, state, jnp.asarray(r["action"]), params)
+    np.testing.assert_allclose(np.asarray(info["cost"]), r["miss"], atol=1e-6)
