@@ -6,7 +6,9 @@ simulator. From a grid of coarse starts over the action box (cost only) the
 c(a) = 0, a <- a - c grad c / |grad c|^2 (the minimum-norm step onto the
 solution set), with a line search over step fractions (1, 1/2, 1/4, 1/8 or
 no step) and the box [-1, 1]^d enforced by clipping; the best final action
-per target wins. The throwing tasks' differentiable-physics baselines.
+per target wins. The throwing tasks' differentiable-physics baselines. ``plan_targets`` starts
+from given actions (a policy's), steps until each target converges, and falls back to multi-start
+Gauss-Newton where the miss stays large.
 """
 
 from __future__ import annotations
@@ -83,19 +85,89 @@ def solve_targets(cost: Cost, dim: int, targets: np.ndarray, batch: int = 250, *
     return {"action": np.concatenate(acts), "miss": np.concatenate(miss), "seconds": time.perf_counter() - t0}
 
 
+def in_batches(fn: Callable[..., tuple[jax.Array, jax.Array]], batch: int,
+               *arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``fn(*arrays)`` (each (n, ...)) -> ``(actions, costs)``, called on fixed-size batches (the last
+    padded with its final row), so that one compilation of ``fn`` serves any n."""
+    acts, miss = [], []
+    for i in range(0, len(arrays[0]), batch):
+        xs = [jnp.asarray(x[i:i + batch]) for x in arrays]
+        pad = batch - xs[0].shape[0]
+        if pad:
+            xs = [jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]) for x in xs]
+        a, c = fn(*xs)
+        acts.append(np.asarray(a)[: batch - pad])
+        miss.append(np.asarray(c)[: batch - pad])
+    return np.concatenate(acts), np.concatenate(miss)
+
+
 def refine_targets(cost: Cost, actions: np.ndarray, targets: np.ndarray, n_iters: int = 4,
                    batch: int = 250) -> dict[str, Any]:
     """``n_iters`` Gauss-Newton steps from given ``actions`` (n, d) (e.g. a policy's) at
     ``targets``, in batches: ``action``, ``miss`` (m), ``seconds``."""
     step = jax.jit(lambda a, t: gauss_newton(cost, a, t, n_iters))
     t0 = time.perf_counter()
-    acts, miss = [], []
-    for i in range(0, len(targets), batch):
-        a, t = jnp.asarray(actions[i:i + batch]), jnp.asarray(targets[i:i + batch])
-        pad = batch - a.shape[0]
-        if pad:
-            a, t = (jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]) for x in (a, t))
-        a, c = step(a, t)
-        acts.append(np.asarray(a)[: batch - pad])
-        miss.append(np.asarray(c)[: batch - pad])
-    return {"action": np.concatenate(acts), "miss": np.concatenate(miss), "seconds": time.perf_counter() - t0}
+    a, miss = in_batches(step, batch, actions, targets)
+    return {"action": a, "miss": miss, "seconds": time.perf_counter() - t0}
+
+
+def _descend(gn, a: np.ndarray, targets: np.ndarray, miss: np.ndarray, n_iters: int, chunk: int, tol: float,
+             batch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gauss-Newton in chunks of ``chunk`` steps on the targets still missed by more than ``tol``:
+    ``(actions, misses, steps taken)``; a target's miss never grows (a worse chunk is dropped)."""
+    a, miss, steps = a.copy(), miss.copy(), np.zeros(len(a), int)
+    for _ in range(0, n_iters, chunk):
+        active = np.nonzero(miss > tol)[0]
+        if active.size == 0:
+            break
+        a_new, c_new = in_batches(gn, batch, a[active], targets[active])
+        better = np.isfinite(c_new) & (c_new <= miss[active])
+        a[active[better]], miss[active[better]] = a_new[better], c_new[better]
+        steps[active] += chunk
+    return a, miss, steps
+
+
+def plan_targets(cost: Cost, actions: np.ndarray, targets: np.ndarray,
+                 starts: Callable[[np.ndarray], np.ndarray], n_iters: int = 12, chunk: int = 4, tol: float = 1e-3,
+                 fallback_above: float = 0.01, n_starts: int = 4, batch: int = 100) -> dict[str, Any]:
+    """Aim from given ``actions`` (n, d) (a policy's) at ``targets``, falling back to multi-start.
+
+    Up to ``n_iters`` Gauss-Newton steps from each action, ``chunk`` at a time (``n_iters`` rounded
+    up to whole chunks; a target drops out once its miss is below ``tol`` m). A target still missed
+    by more than ``fallback_above`` m gets the starts ``starts(actions (m, d)) -> (m, K, d)`` (given
+    its refined action), thrown once each; the ``n_starts`` with the least miss are refined likewise.
+    Per target the best action of all wins: no target ends worse than its start. One compiled
+    Gauss-Newton chunk and one compiled cost, of fixed shape ``batch``, serve every stage.
+    Returns ``action``, ``miss`` (m), ``start_miss`` (the given actions', clipped to the box),
+    ``steps`` (from the given action), ``fallback`` (bool: the target got the multi-start),
+    ``seconds``, ``fallback_seconds``.
+    """
+    gn = jax.jit(lambda a, t: gauss_newton(cost, a, t, chunk))
+    costs = jax.jit(lambda a, t: (a, jax.vmap(cost)(a, t)))
+    finite = lambda c: np.where(np.isfinite(c), c, np.inf)  # noqa: E731
+    t0 = time.perf_counter()
+    targets = np.asarray(targets, float)
+    a = np.clip(np.asarray(actions, float), -1.0, 1.0)
+    start_miss = finite(in_batches(costs, batch, a, targets)[1])
+    a, miss, steps = _descend(gn, a, targets, start_miss, n_iters, chunk, tol, batch)
+    t1 = time.perf_counter()
+    bad = np.nonzero(miss > fallback_above)[0]
+    if bad.size:
+        cand = np.asarray(starts(a[bad]), float)
+        K = cand.shape[1]
+        k = min(n_starts, K)
+        c0 = finite(in_batches(costs, batch, cand.reshape(-1, cand.shape[2]), np.repeat(targets[bad], K, 0))[1])
+        pick = np.argsort(c0.reshape(-1, K), 1)[:, :k]
+        a0 = np.take_along_axis(cand, pick[..., None], 1).reshape(-1, cand.shape[2])
+        af, cf, _ = _descend(gn, a0, np.repeat(targets[bad], k, 0),
+                             np.take_along_axis(c0.reshape(-1, K), pick, 1).reshape(-1), n_iters, chunk, tol, batch)
+        af, cf = af.reshape(bad.size, k, -1), cf.reshape(bad.size, k)
+        best = np.argmin(cf, 1)
+        cb, ab = cf[np.arange(bad.size), best], af[np.arange(bad.size), best]
+        won = cb < miss[bad]
+        a[bad[won]], miss[bad[won]] = ab[won], cb[won]
+    fallback = np.zeros(len(a), bool)
+    fallback[bad] = True
+    t2 = time.perf_counter()
+    return {"action": a, "miss": miss, "start_miss": start_miss, "steps": steps, "fallback": fallback,
+            "seconds": t2 - t0, "fallback_seconds": t2 - t1}
