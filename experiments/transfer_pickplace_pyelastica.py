@@ -285,6 +285,28 @@ def pyelastica_tips(eps: dict, idx) -> tuple[np.ndarray, np.ndarray]:
 
 # ----------------------------------------------------------------------------- tendon validation
 
+def validate_elements(args) -> dict:
+    """The closed-form case (no gravity, 30 N) with ``--check-elements`` elements at dt/2: PyElastica's
+    discretisation error, and its Richardson extrapolation (error O(1/n): the base holds element 0's
+    frame, so the clamp acts half an element out along the rod)."""
+    I = math.pi * P["radius"] ** 4 / 4.0
+    EI, EA = P["youngs_modulus"] * I, P["youngs_modulus"] * math.pi * P["radius"] ** 2
+    T, n1, n2 = 30.0, args.elements, args.check_elements
+    angle, pull = episode_laws((0.0, 0.0), (T, T), 5.0, ramp_time=1.0)
+    tip = {n: pyelastica_run(angle, pull, 6.0, (6.0,), args.dt / 2, n, gravity=0.0, average_last=0.5)["tips_mean"][0]
+           for n in (n1, n2)}
+    kap, L = T * OFFSET / EI, P["length"] * (1.0 - T / EA)
+    closed = np.array([(1.0 - math.cos(kap * P["length"])) / kap, -math.sin(kap * P["length"]) / kap, 0.0]) * L
+    extra = (n2 * tip[n2] - n1 * tip[n1]) / (n2 - n1)
+    out = dict(tension=T, dt=args.dt / 2, closed_form=closed.tolist(), extrapolated=extra.tolist(),
+               **{f"pyelastica_{n}": tip[n].tolist() for n in (n1, n2)},
+               **{f"deflection_error_{n}_mm": 1e3 * float(tip[n][0] - closed[0]) for n in (n1, n2)},
+               deflection_error_extrapolated_mm=1e3 * float(extra[0] - closed[0]),
+               extrapolated_vs_closed_mm=1e3 * float(np.linalg.norm(extra - closed)))
+    print(out, flush=True)
+    return out
+
+
 def validate_tendon(args) -> dict:
     """PyElastica's tendon against the closed form and against gvsjax's statics."""
     out: dict = dict(offset=OFFSET, dt=args.dt, cases=[])
@@ -376,6 +398,7 @@ def save_json(res: dict, path: str) -> None:
 
 
 def run(args) -> dict:
+    wait_for(args.pause_file)
     config, env, params, net = load_policy(resolve(args.checkpoint))
     policy = make_policy(config, env.action_size, net)
     targets_all = pp.eval_targets(params, EVAL_N, EVAL_SEED)
@@ -462,15 +485,21 @@ def run(args) -> dict:
                 n_elements=args.check_elements, n_pairs=int(len(chk)), pairs=chk.tolist(), tips=t_fine.tolist(),
                 tip_mm_median=[1e3 * float(np.median(de[:, k])) for k in range(2)],
                 tip_mm_max=[1e3 * float(np.max(de[:, k])) for k in range(2)])
+            n1, n2 = args.elements, args.check_elements
+            out["models"][name]["vs_elements"]["extrapolated_tips"] = ((n2 * t_fine - n1 * t_half) / (n2 - n1)).tolist()
             print(f"  {args.check_elements} vs {args.elements} elements (dt/2): "
                   f"{out['models'][name]['vs_elements']['tip_mm_median']} mm (median)", flush=True)
     out["roles"] = names(args.modes, args.fine_modes, args.elements)
     out["decomposition"] = decomposition(out)
+    if args.validate and args.check_elements and "elements" not in out["tendon_validation"]:
+        save_json(out, args.json)
+        wait_for(args.pause_file)
+        out["tendon_validation"]["elements"] = validate_elements(args)
     return out
 
 
 def _radial_tangential(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Components of a - b (n, 2) along b's radius and along the circle (counter-clockwise)."""
+    """Components of a - b (n, 2) along b's radius (outwards) and along the circle (counter-clockwise)."""
     u = b / np.linalg.norm(b, axis=-1, keepdims=True)
     dv = a - b
     return np.sum(dv * u, -1), dv[..., 1] * u[..., 0] - dv[..., 0] * u[..., 1]
@@ -496,7 +525,8 @@ def decomposition(out: dict) -> list[dict]:
             dd = np.array(B["distance"])[:, k] - np.array(A["distance"])[:, k]
             rows.append(dict(what=what, a=r[a], b=r[b], step=k + 1, tip_mm_median=1e3 * float(np.median(dp)),
                              tip_mm_max=1e3 * float(np.max(dp)), radial_mm_median=1e3 * float(np.median(rad)),
-                             tangential_mm_median=1e3 * float(np.median(tan)),
+                             radial_abs_mm_median=1e3 * float(np.median(np.abs(rad))),
+                             tangential_abs_mm_median=1e3 * float(np.median(np.abs(tan))),
                              distance_change_cm_median=1e2 * float(np.median(dd))))
     return rows
 
@@ -532,25 +562,34 @@ def plot(res: dict, out: str) -> None:
         bx = axes[1, k]
         pe = np.array(models[r["pyelastica"]]["tips"])[:, k]
         ang = np.degrees(np.arctan2(targets[:, k, 0], -targets[:, k, 1]))
+        K = r["bend"].split()[1]
+        short = {"task": "gvsjax 2 modes (task)", "bend": f"gvsjax {K} Legendre",
+                 "ss": f"gvsjax {K} Leg. + stretch/shear", "ss_undamped": "the same, undamped"}
         for role, mk, c in (("task", "o", "C0"), ("bend", "s", "C2"), ("ss", "^", "C1"), ("ss_undamped", "v", "C3")):
             if r[role] not in models:
                 continue
             tips = np.array(models[r[role]]["tips"])[:, k]
             bx.plot(ang, 1e3 * np.linalg.norm(tips - pe, axis=1), mk, ms=3.5, color=c, mfc="none",
-                    label=f"{r[role]} vs PyElastica")
+                    label=short[role])
         chk = models[r["pyelastica"]].get("vs_elements")
         if chk:
             j = np.array(chk["pairs"])
+            n1 = r["pyelastica"].split()[1]
             bx.plot(ang[j], 1e3 * np.linalg.norm(np.array(chk["tips"])[:, k] - pe[j], axis=1), "kx", ms=7, mew=1.5,
-                    label=f"PyElastica {chk['n_elements']} (dt/2) vs {r['pyelastica'].split()[1]} elements")
+                    label=f"PyElastica {chk['n_elements']} (dt/2) vs {n1} el.")
+            if r["ss"] in models and "extrapolated_tips" in chk:
+                ss = np.array(models[r["ss"]]["tips"])[j, k]
+                bx.plot(ang[j], 1e3 * np.linalg.norm(ss - np.array(chk["extrapolated_tips"])[:, k], axis=1), "P",
+                        ms=7, color="C1", label=f"{short['ss']} vs PyElastica extrap.")
         bx.set_yscale("log")
         bx.set_xlabel(f"step {k + 1} target's angle from hanging (deg)")
         bx.set_ylabel("end-of-step tip difference (mm)")
-        bx.set_title(f"({'cd'[k]}) step {k + 1}: where the models part, per pair", fontsize=10)
+        bx.set_title(f"({'cd'[k]}) step {k + 1}: tip differences per pair, from PyElastica "
+                     f"{r['pyelastica'].split()[1]} elements unless marked", fontsize=10)
         bx.grid(alpha=0.3, which="both")
-        bx.legend(fontsize=7, loc="lower center", ncol=2)
+        bx.legend(fontsize=7, loc="upper center", ncol=2)
         lo, hi = bx.get_ylim()
-        bx.set_ylim(lo, hi * 30)  # room for the legend above the points
+        bx.set_ylim(lo, hi * 60)  # room for the legend above the points
     fig.tight_layout()
     os.makedirs(os.path.dirname(out), exist_ok=True)
     fig.savefig(out, dpi=110)
@@ -575,26 +614,29 @@ def print_tables(res: dict) -> None:
             print(f"| {name} | {m.get('strain_dofs', '')} | {k + 1} | {100 * s['median_m']:.2f} cm | "
                   f"{100 * s['p95_m']:.2f} cm | {100 * s['max_m']:.2f} cm | {100 * s['within_2cm']:.0f}% | "
                   f"{1e3 * np.median(dp):.2f} / {1e3 * np.max(dp):.2f} | {e} |")
-    print("\n| what | from | to | step | tip: median / max (mm) | radial, median (mm) | along the circle, "
-          "median (mm) | distance change, median (cm) |")
+    print("\n| what | from | to | step | tip: median / max (mm) | radial: median, median abs (mm) "
+          "| along the circle: median abs (mm) | distance change, median (cm) |")
     print("|---|---|---|---|---|---|---|---|")
     for x in res["decomposition"]:
         print(f"| {x['what']} | {x['a']} | {x['b']} | {x['step']} | {x['tip_mm_median']:.2f} / {x['tip_mm_max']:.2f} "
-              f"| {x['radial_mm_median']:.2f} | {x['tangential_mm_median']:.2f} | "
-              f"{x['distance_change_cm_median']:.2f} |")
+              f"| {x['radial_mm_median']:+.2f}, {x['radial_abs_mm_median']:.2f} | "
+              f"{x['tangential_abs_mm_median']:.2f} | {x['distance_change_cm_median']:+.2f} |")
     pm = models[r["pyelastica"]]
     if "vs_elements" in pm:
         v = pm["vs_elements"]
         chk = np.array(v["pairs"])
-        fine = np.array(v["tips"])
-        print(f"\nAgainst PyElastica with {v['n_elements']} elements (dt/2), on {v['n_pairs']} pairs "
-              "(end-of-step tip, median / max, mm)\n")
-        print("| model | step 1 | step 2 |")
-        print("|---|---|---|")
+        fine, extra = np.array(v["tips"]), np.array(v["extrapolated_tips"])
+        print(f"\nAgainst PyElastica with {v['n_elements']} elements (dt/2) and extrapolated in the element count "
+              f"((n2 P_n2 - n1 P_n1) / (n2 - n1)), on {v['n_pairs']} pairs (end-of-step tip, median / max, mm)\n")
+        print(f"| model | step 1 vs {v['n_elements']} | step 2 vs {v['n_elements']} | step 1 vs extrapolated "
+              "| step 2 vs extrapolated |")
+        print("|---|---|---|---|---|")
         for name, m in models.items():
-            dp = np.linalg.norm(np.array(m["tips"])[chk] - fine, axis=2)
-            print(f"| {name} | {1e3 * np.median(dp[:, 0]):.2f} / {1e3 * np.max(dp[:, 0]):.2f} | "
-                  f"{1e3 * np.median(dp[:, 1]):.2f} / {1e3 * np.max(dp[:, 1]):.2f} |")
+            cells = []
+            for ref in (fine, extra):
+                dp = np.linalg.norm(np.array(m["tips"])[chk] - ref, axis=2)
+                cells += [f"{1e3 * np.median(dp[:, k]):.2f} / {1e3 * np.max(dp[:, k]):.2f}" for k in range(2)]
+            print(f"| {name} | {' | '.join(cells[:2] + cells[2:])} |")
         print(f"\nPyElastica max element stretch {pm['max_stretch']:.2e}, base angle error "
               f"{pm['max_base_angle_error']:.1e} rad")
     tv = res.get("tendon_validation")
@@ -604,6 +646,8 @@ def print_tables(res: dict) -> None:
             print({k: (np.round(np.array(v) * 1e3, 3).tolist() if isinstance(v, list) and k != "converged" else v)
                    for k, v in c.items()})
         print(tv["tendon_effect_horizontal"])
+        if "elements" in tv:
+            print(tv["elements"])
 
 
 def main() -> None:
