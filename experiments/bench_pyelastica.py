@@ -122,14 +122,16 @@ def _elastica():
             system.external_forces[:, -1] += self.force
 
     class SwingingBase(ea.ConstraintBase):
-        """Node 0 fixed; element 0's frame follows R_z(theta(t)), theta = theta_F (t/T)^2."""
+        """Node 0 fixed; element 0's frame follows R_z(theta(t)): theta = theta_F (t/T)^2, or any
+        ``law(t) -> (theta, dtheta/dt)`` (rad, rad/s) with theta(0) = 0."""
 
-        def __init__(self, base_position, base_director, T, **kwargs):
+        def __init__(self, base_position, base_director, T=None, law=None, **kwargs):
             super().__init__(**kwargs)
-            self.T = float(T)
+            self.T = None if T is None else float(T)
+            self.law = law
             self.base = np.array(base_position)
-            # the rod is built hanging along -y with d1 = +z: R_z(0) below must be its frame
-            assert np.allclose(base_director, self._frame(0.0)), base_director
+            # the rod is built hanging along -y with d1 = +z: R_z(theta(0)) below must be its frame
+            assert np.allclose(base_director, self._frame(self._theta(0.0)[0])), base_director
 
         @staticmethod
         def _frame(th):
@@ -138,6 +140,8 @@ def _elastica():
             return np.array([[0.0, 0.0, 1.0], [-c, -s, 0.0], [s, -c, 0.0]])
 
         def _theta(self, t):
+            if self.law is not None:
+                return self.law(t)
             s = t / self.T
             return THETA_F * s * s, 2.0 * THETA_F * s / self.T
 
@@ -161,10 +165,13 @@ def first_bending_omega() -> float:
     return 1.8751**2 * math.sqrt(P["youngs_modulus"] * I / (rhoA * P["length"] ** 4))
 
 
-def swinging_rod(sim, n_elements: int, T: float, youngs_modulus: float | None = None):
+def swinging_rod(sim, n_elements: int, T: float | None, youngs_modulus: float | None = None, tip_force: float = BALL,
+                 gravity: float | None = None, law=None):
     """The arm as a PyElastica rod in ``sim`` (a system collection with constraints and forcing):
-    hanging along -y, its base swung by ``SwingingBase``, gravity and the ball's weight on the tip.
-    ``youngs_modulus``: E (Pa; default the paper's), G = E / (2 (1 + poisson)) as in gvsjax."""
+    hanging along -y, its base swung by ``SwingingBase`` (the swing of duration ``T``, or the
+    angle ``law``), gravity and the ball's weight on the tip.
+    ``youngs_modulus``: E (Pa; default the paper's), G = E / (2 (1 + poisson)) as in gvsjax;
+    ``tip_force``: the ball's weight (N, along -y; 0: none); ``gravity``: m/s^2 (default the paper's)."""
     ea, _, TipForce, SwingingBase = _elastica()
     E = P["youngs_modulus"] if youngs_modulus is None else float(youngs_modulus)
     rod = ea.CosseratRod.straight_rod(
@@ -172,9 +179,13 @@ def swinging_rod(sim, n_elements: int, T: float, youngs_modulus: float | None = 
         base_length=P["length"], base_radius=P["radius"], density=P["density"],
         youngs_modulus=E, shear_modulus=E / (2.0 * (1.0 + P["poisson"])))
     sim.append(rod)
-    sim.constrain(rod).using(SwingingBase, constrained_position_idx=(0,), constrained_director_idx=(0,), T=T)
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, -P["gravity"], 0.0]))
-    sim.add_forcing_to(rod).using(TipForce, force=(0.0, -BALL, 0.0))
+    sim.constrain(rod).using(SwingingBase, constrained_position_idx=(0,), constrained_director_idx=(0,), T=T,
+                             law=law)
+    g = P["gravity"] if gravity is None else float(gravity)
+    if g:
+        sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, -g, 0.0]))
+    if tip_force:
+        sim.add_forcing_to(rod).using(TipForce, force=(0.0, -float(tip_force), 0.0))
     return rod
 
 

@@ -68,23 +68,25 @@ EVAL_N, EVAL_SEED = 1000, 1_000_003  # python -m gvsjax.evaluate's targets for a
 
 # ----------------------------------------------------------------------------- models
 
-def bending_arm(n_modes: int, n_gauss: int, basis: str = "legendre"):
-    return gv.paper_arm(tip_force=bb.BALL_WEIGHT, n_modes=n_modes, n_gauss=n_gauss, basis=basis)
+def bending_arm(n_modes: int, n_gauss: int, basis: str = "legendre", **arm):
+    """The paper's arm with ``n_modes`` bending modes; ``arm``: other ``paper_arm`` overrides
+    (default: the ball's weight on the tip)."""
+    return gv.paper_arm(**{"tip_force": bb.BALL_WEIGHT, **arm}, n_modes=n_modes, n_gauss=n_gauss, basis=basis)
 
 
-def cosserat_arm(n_modes: int, ss_order: int, n_gauss: int):
+def cosserat_arm(n_modes: int, ss_order: int, n_gauss: int, **arm):
     """``bending_arm`` with the in-plane stretch (local x) and shear (local y) strains active,
     Legendre order ``ss_order`` each (the paper's arm bends about z in the x-y plane)."""
-    arm = bending_arm(n_modes, n_gauss)
-    link = arm.links[0]
+    robot = bending_arm(n_modes, n_gauss, **arm)
+    link = robot.links[0]
     basis = StrainBasis(orders=(-1, -1, n_modes - 1, ss_order, ss_order, -1), kind="legendre")
-    return arm.replace(links=(link.replace(basis=basis),))
+    return robot.replace(links=(link.replace(basis=basis),))
 
 
-def cosserat_arm_undamped(n_modes: int, ss_order: int, n_gauss: int):
+def cosserat_arm_undamped(n_modes: int, ss_order: int, n_gauss: int, **arm):
     """``cosserat_arm`` with stretch and shear undamped, as in PyElastica's rod here."""
-    arm = cosserat_arm(n_modes, ss_order, n_gauss)
-    return arm.replace(links=(arm.links[0].replace(damping_factors=(1.0, 3.0, 3.0, 0.0, 0.0, 0.0)),))
+    robot = cosserat_arm(n_modes, ss_order, n_gauss, **arm)
+    return robot.replace(links=(robot.links[0].replace(damping_factors=(1.0, 3.0, 3.0, 0.0, 0.0, 0.0)),))
 
 
 # the models' names, by role (the decomposition and the figure refer to them)
@@ -101,16 +103,17 @@ def names(K: int, K2: int, n_elements: int) -> dict:
                 ss=SS.format(K=K), ss_undamped=SS_UNDAMPED.format(K=K), pyelastica=PYELASTICA.format(n=n_elements))
 
 
-def variants(K: int, K2: int, ss_order: int, n_elements: int) -> dict:
-    """gvsjax models: name -> arm (None: the task's own); the task's first."""
+def variants(K: int, K2: int, ss_order: int, n_elements: int, **arm) -> dict:
+    """gvsjax models: name -> arm (None: the task's own); the task's first. ``arm``: ``paper_arm``
+    overrides shared by all (default: the ball's weight on the tip)."""
     nm = names(K, K2, n_elements)
     return {
         nm["task"]: None,
-        nm["gauss8"]: bending_arm(2, 8, "monomial"),
-        nm["bend"]: bending_arm(K, max(8, K + 2)),
-        nm["bend_fine"]: bending_arm(K2, max(8, K2 + 2)),
-        nm["ss"]: cosserat_arm(K, ss_order, max(8, K + 2)),
-        nm["ss_undamped"]: cosserat_arm_undamped(K, ss_order, max(8, K + 2)),
+        nm["gauss8"]: bending_arm(2, 8, "monomial", **arm),
+        nm["bend"]: bending_arm(K, max(8, K + 2), **arm),
+        nm["bend_fine"]: bending_arm(K2, max(8, K2 + 2), **arm),
+        nm["ss"]: cosserat_arm(K, ss_order, max(8, K + 2), **arm),
+        nm["ss_undamped"]: cosserat_arm_undamped(K, ss_order, max(8, K + 2), **arm),
     }
 
 

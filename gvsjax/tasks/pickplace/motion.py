@@ -66,10 +66,11 @@ def run_step(params: PickPlaceParams, q, qd, tension0, theta_final, tension, sav
 
 
 def episode(params: PickPlaceParams, actions, save_every=None):
-    """Both steps from rest for actions (2, 2): the two trajectories."""
+    """Both steps from rest for actions (2, 2): the two trajectories (any ``params.arm`` whose
+    first coordinate is the base angle)."""
     theta1, t1 = action_to_physical(actions[0], params)
     theta2, t2 = action_to_physical(actions[1], params)
-    zero = jnp.zeros(3)
+    zero = jnp.zeros(params.arm.n_dofs)
     tr1 = run_step(params, zero, zero, 0.0, theta1, t1, save_every)
     tr2 = run_step(params, tr1.q[-1], tr1.qd[-1], t1, theta2, t2, save_every)
     return tr1, tr2
