@@ -74,7 +74,7 @@ from pickplace_pyelastica import (  # experiments/ is on sys.path
     validate_tendon,
     wait_for,
 )
-from transfer_pyelastica import names, variants
+from transfer_pyelastica import add_model_options, names, variants
 
 import gvsjax  # noqa: F401  (configures JAX: XLA flag, x64, before any computation)
 from gvsjax.ppo import load_policy
@@ -371,13 +371,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--checkpoint", default="runs/pp-default", help="run folder or checkpoint file")
     ap.add_argument("--n-pairs", type=int, default=100, help=f"the first n of the {EVAL_N} evaluation pairs")
-    ap.add_argument("--modes", type=int, default=6, help="Legendre bending modes of the converged basis")
-    ap.add_argument("--fine-modes", type=int, default=8, help="Legendre bending modes of the check of the basis")
-    ap.add_argument("--ss-order", type=int, default=2, help="Legendre order of stretch and shear")
-    ap.add_argument("--dt", type=float, default=1e-4, help="PyElastica step (s)")
-    ap.add_argument("--elements", type=int, default=100)
+    add_model_options(ap)
     ap.add_argument("--check-dt", type=int, default=6, help="pairs rerun at dt/2 (about; 0: none)")
-    ap.add_argument("--check-elements", type=int, default=200, help="elements of the discretisation check (0: none)")
     ap.add_argument("--no-step-check", action="store_true", help="skip the gvsjax models' 4x-steps check")
     ap.add_argument("--validate", action="store_true", help="validate PyElastica's tendon first (statics)")
     ap.add_argument("--pause-file", default=None, help="wait before each model and episode while this file exists")

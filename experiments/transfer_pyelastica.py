@@ -432,17 +432,22 @@ def print_tables(res: dict) -> None:
                   f"{r['along_swing_mm_median']:.2f} | {r['miss_change_cm_median']:.2f} |")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--checkpoint", default="runs/basketball-default", help="run folder or checkpoint file")
-    ap.add_argument("--n-targets", type=int, default=200, help=f"the first n of the {EVAL_N} evaluation targets")
+def add_model_options(ap: argparse.ArgumentParser) -> None:
+    """The options both transfer scripts share: the gvsjax models' bases and PyElastica's rod."""
     ap.add_argument("--modes", type=int, default=6, help="Legendre bending modes of the converged basis")
     ap.add_argument("--fine-modes", type=int, default=8, help="Legendre bending modes of the check of the basis")
     ap.add_argument("--ss-order", type=int, default=2, help="Legendre order of stretch and shear")
     ap.add_argument("--dt", type=float, default=1e-4, help="PyElastica step (s)")
     ap.add_argument("--elements", type=int, default=100)
-    ap.add_argument("--check-dt", type=int, default=20, help="throws rerun at dt/2 (0: none)")
     ap.add_argument("--check-elements", type=int, default=200, help="elements of the discretisation check (0: none)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--checkpoint", default="runs/basketball-default", help="run folder or checkpoint file")
+    ap.add_argument("--n-targets", type=int, default=200, help=f"the first n of the {EVAL_N} evaluation targets")
+    add_model_options(ap)
+    ap.add_argument("--check-dt", type=int, default=20, help="throws rerun at dt/2 (0: none)")
     ap.add_argument("--no-step-check", action="store_true",
                     help="skip the 4x-steps check of models not yet in --json (it doubles their compile time)")
     ap.add_argument("--workers", type=int, default=1, help="PyElastica processes")
