@@ -117,10 +117,31 @@ def simulate(
     if dtype == np.float32:  # float64 array leaves (a traced E, say) would lift the run back to float64
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
-    return _run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
+    run = _run.__wrapped__ if _building_a_program() else _run  # type: ignore[attr-defined]
+    return run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
                 jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
                 integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law),
                 control=control)
+
+
+def _building_a_program() -> bool:
+    """True when a caller's jit (or scan, eval_shape) is tracing: the simulation is then traced
+    straight into that program. Under ``jit(vmap(...))`` a separately jitted run would be traced
+    once and then batched in a second pass over its equations, a third of a task step's trace
+    time. Eager calls and eager ``vmap`` keep the jitted run, which compiles once and is cached.
+    Reads JAX's trace stack (internal API); if that changes, the jitted run is used."""
+    try:
+        from jax._src import core
+        from jax._src.interpreters import partial_eval as pe
+
+        trace = core.unsafe_get_current_trace()
+        while trace is not None:
+            if isinstance(trace, pe.DynamicJaxprTrace):
+                return True
+            trace = getattr(trace, "parent_trace", None)
+    except (ImportError, AttributeError):
+        pass
+    return False
 
 
 def _input(law, value):

@@ -138,6 +138,30 @@ def test_traced_inputs_skip_concrete_checks_but_run():
     assert out.shape == (2, 3) and np.all(np.isfinite(out))
 
 
+def test_under_jit_the_run_is_traced_into_the_callers_program():
+    """Inside a caller's jit (or scan) ``simulate`` traces its run into that program instead of
+    calling its own jitted run (which ``vmap`` would trace, then batch in a second pass); eager
+    calls and eager ``vmap`` keep the jitted run. Both give the same states."""
+    from gvsjax import simulation
+
+    seen = []
+
+    def tip(T):
+        seen.append(simulation._building_a_program())
+        arm = gv.paper_arm(**SMALL_ARM)
+        return gv.simulate(arm, 0.2, n_steps=40, base_angle=lambda t: THETA_F * (t / T) ** 2,
+                           integrator="ars443", save_every=40, check_stability=False).tip[-1]
+
+    T = jnp.array([1.5, 2.5])
+    eager = np.asarray(jax.vmap(tip)(T))
+    inline = np.asarray(jax.jit(jax.vmap(tip))(T))
+    scanned = np.asarray(jax.lax.scan(lambda c, t: (c, tip(t)), 0.0, T)[1])
+    assert seen == [False, True, True]
+    assert np.all(np.isfinite(eager))
+    np.testing.assert_allclose(inline, eager, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scanned, eager, rtol=0, atol=1e-12)
+
+
 @pytest.mark.slow
 def test_gradients_match_central_differences():
     """Derivatives of the tip with respect to E, damping, tip load and swing, by forward mode
