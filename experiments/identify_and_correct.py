@@ -29,6 +29,9 @@ the true parameters, and the refined action is thrown on the true arm (``Basketb
     python experiments/identify_and_correct.py --checkpoint runs/bb-ident --reuse-fits --pyelastica-targets 100
     python experiments/identify_and_correct.py --replot
 
+``--reuse-fits`` keeps the fits and the correction already in ``--json`` (delete its "correct" entry to
+redo the correction, e.g. for another checkpoint); ``--no-legendre`` fits only the task's 2-mode model.
+
 ``--pyelastica-targets N`` also throws the first N targets in PyElastica's true arm: the policy's
 actions and those refined (in gvsjax's 2-mode model) with the nominal, the true and the parameters
 the 2-mode model identified from the PyElastica throws.
@@ -338,6 +341,8 @@ def main() -> None:
     ap.add_argument("--pyelastica-targets", type=int, default=0,
                     help="also throw the first N targets' actions in PyElastica's true arm")
     ap.add_argument("--ss", action="store_true", help="also fit the Legendre arm with stretch and shear")
+    ap.add_argument("--no-legendre", action="store_true",
+                    help="fit only the task's 2-mode model (the Legendre arm's differentiated swing compiles longest)")
     ap.add_argument("--skip-correction", action="store_true")
     ap.add_argument("--reuse-fits", action="store_true",
                     help="keep the fits and the correction already in --json (compute only what is missing)")
@@ -358,7 +363,8 @@ def main() -> None:
         res = json.load(open(args.json)) if os.path.exists(args.json) and args.reuse_fits else {}
         res["jax"] = jax.__version__
         # the task's model first: the correction needs only its fits; the Legendre arm compiles longest
-        for kinds in (["2 modes"], ["2 modes", "6 Legendre"] + (["6 Legendre + stretch/shear"] if args.ss else [])):
+        legendre = [] if args.no_legendre else ["6 Legendre"] + (["6 Legendre + stretch/shear"] if args.ss else [])
+        for kinds in (["2 modes"], ["2 modes"] + legendre):
             res["identify"] = identify(args, kinds, res.get("identify"))
             with open(args.json, "w") as fh:
                 json.dump(res, fh, indent=1)
