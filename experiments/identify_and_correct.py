@@ -285,18 +285,23 @@ def plot(res: dict, out: str) -> None:
     if pe:
         panels.append((axes[3], {k: v["misses"] for k, v in pe["throws"].items()}, pe["n_targets"],
                        "PyElastica (100 elements)"))
+    set_colors = {"policy": "C0", "nominal": "C1", "identified": "C2", "true": "C3"}
     for ax, misses, n, what in panels:
-        for name, m in misses.items():
-            m = np.sort(np.asarray(m, float))
+        for name in [k for k in set_colors if k in misses]:  # the same order and colour in each panel
+            m = np.sort(np.asarray(misses[name], float))
             label = "policy alone" if name == "policy" else f"+ Gauss-Newton, {name} parameters"
-            ax.plot(100 * m, 100 * np.arange(1, len(m) + 1) / len(m), label=label)
+            if name == "identified":
+                label += "\n  (from the true arm's throws)"
+            ax.plot(100 * m, 100 * np.arange(1, len(m) + 1) / len(m), label=label, color=set_colors[name])
         for x in (1.0, 10.0):
             ax.axvline(x, color="0.6", lw=0.8, ls=":")
         ax.set(xscale="log", xlabel="miss on the true arm (cm)", ylabel=f"targets (%, of {n})")
         ax.set_title(f"true arm: {what}, E x{f['E']}, eta x{f['eta']}; {c['gn_iters']} Gauss-Newton steps\n"
                      "in gvsjax's 2-mode model", fontsize=8)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+    # one legend (the same sets and colours in both panels), where the last panel has room for it
+    if panels:
+        panels[-1][0].legend(fontsize=6.5, loc="upper left")
     fig.tight_layout()
     os.makedirs(os.path.dirname(out), exist_ok=True)
     fig.savefig(out, dpi=130)
