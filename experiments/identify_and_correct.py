@@ -217,6 +217,38 @@ def correct(args, ident: dict) -> dict:
                 misses={k: v.tolist() for k, v in misses.items()})
 
 
+def legendre_correction(args, res: dict) -> None:
+    """The first ``--pyelastica-targets`` actions refined instead in the 6-mode Legendre arm (the
+    converged bending basis), with the parameters it identified from the PyElastica throws and with
+    the true ones, and thrown in PyElastica's true arm; added to ``res["correct"]["pyelastica"]``."""
+    from gvsjax.ppo import load_policy
+    from gvsjax.ppo.checkpoint import make_policy, resolve
+
+    pe = res["correct"]["pyelastica"]
+    n = pe["n_targets"]
+    config, env, params, net = load_policy(resolve(args.checkpoint))
+    policy = make_policy(config, env.action_size, net)
+    keys = jax.random.split(jax.random.PRNGKey(EVAL_SEED), EVAL_N)[:n]
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    actions = jax.jit(policy)(obs)
+    pfit = next(f for f in res["identify"]["fits"] if f["model"] == "6 Legendre" and f["data"] == "pyelastica")
+    models = {"identified, 6 Legendre": (pfit["values"]["E"], pfit["values"]["eta"]),
+              "true, 6 Legendre": (E0 * args.true_E, ETA0 * args.true_eta)}
+    refine = jax.jit(lambda p, a: gauss_newton(p, a, state.target, args.gn_iters))
+    sets, timing = {}, {}
+    for name, (E, eta) in models.items():
+        t0 = time.perf_counter()
+        a, model_miss = jax.block_until_ready(refine(dataclasses.replace(params, arm=arm("6 Legendre", E, eta)),
+                                                     actions))
+        timing[name] = time.perf_counter() - t0
+        sets[name] = np.asarray(a)
+        print(f"refined in 6 Legendre modes, {name}: model miss median "
+              f"{100 * np.median(np.asarray(model_miss)):.3f} cm; {timing[name]:.1f} s", flush=True)
+    out = pyelastica_correction(args, np.asarray(state.target), sets, params)
+    pe["throws"].update(out["throws"])
+    pe["legendre_refine_s"] = timing
+
+
 def pyelastica_correction(args, targets: np.ndarray, actions: dict, params) -> dict:
     """The first ``--pyelastica-targets`` targets thrown in PyElastica's true arm, for each action
     set (the policy's; refined with nominal, identified (from PyElastica) and true parameters in
@@ -264,7 +296,7 @@ def plot(res: dict, out: str) -> None:
 
     c = res.get("correct")
     pe = c.get("pyelastica") if c else None
-    fig, axes = plt.subplots(1, 4 if pe else 3, figsize=(18.5 if pe else 14, 4.2))
+    fig, axes = plt.subplots(1, 4 if pe else 3, figsize=(21.5 if pe else 16, 4.2))
     styles = {"2 modes": "-", "6 Legendre": "--", "6 Legendre + stretch/shear": ":"}
     colors = {"pyelastica": "C0", "pyelastica nominal": "C1", "gvsjax": "C2"}
     for f in res["identify"]["fits"]:
@@ -287,24 +319,31 @@ def plot(res: dict, out: str) -> None:
                        "PyElastica (100 elements)"))
     set_colors = {"policy": "C0", "nominal": "C1", "identified": "C2", "true": "C3"}
     for ax, misses, n, what in panels:
-        for name in [k for k in set_colors if k in misses]:  # the same order and colour in each panel
+        names = [k for k in set_colors if k in misses] + [f"{k}, 6 Legendre" for k in set_colors
+                                                            if f"{k}, 6 Legendre" in misses]
+        for name in names:  # the same order and colour in each panel; dashed: refined in 6 Legendre modes
             m = np.sort(np.asarray(misses[name], float))
-            label = "policy alone" if name == "policy" else f"+ Gauss-Newton, {name} parameters"
-            if name == "identified":
+            base = name.split(",")[0]
+            label = "policy alone" if name == "policy" else f"+ Gauss-Newton, {base} parameters"
+            if base == "identified":
                 label += "\n  (from the true arm's throws)"
-            ax.plot(100 * m, 100 * np.arange(1, len(m) + 1) / len(m), label=label, color=set_colors[name])
+            if name != base:
+                label = label.replace("Gauss-Newton,", "Gauss-Newton in 6 Legendre modes,")
+            ax.plot(100 * m, 100 * np.arange(1, len(m) + 1) / len(m), "--" if name != base else "-",
+                    label=label, color=set_colors[base])
         for x in (1.0, 10.0):
             ax.axvline(x, color="0.6", lw=0.8, ls=":")
         ax.set(xscale="log", xlabel="miss on the true arm (cm)", ylabel=f"targets (%, of {n})")
+        dashed = any("6 Legendre" in k for k in misses)
         ax.set_title(f"true arm: {what}, E x{f['E']}, eta x{f['eta']}; {c['gn_iters']} Gauss-Newton steps\n"
-                     "in gvsjax's 2-mode model", fontsize=8)
+                     "in gvsjax's 2-mode model" + (" (dashed: 6 Legendre modes)" if dashed else ""), fontsize=8)
         ax.grid(alpha=0.3)
-    # one legend (the same sets and colours in both panels), where the last panel has room for it
+    # one legend (the same sets and colours in both panels), right of the last panel: it covers no curve
     if panels:
-        panels[-1][0].legend(fontsize=6.5, loc="upper left")
+        panels[-1][0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.tight_layout()
     os.makedirs(os.path.dirname(out), exist_ok=True)
-    fig.savefig(out, dpi=130)
+    fig.savefig(out, dpi=130, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -349,6 +388,9 @@ def main() -> None:
     ap.add_argument("--no-legendre", action="store_true",
                     help="fit only the task's 2-mode model (the Legendre arm's differentiated swing compiles longest)")
     ap.add_argument("--skip-correction", action="store_true")
+    ap.add_argument("--legendre-correction", action="store_true",
+                    help="also refine the PyElastica targets' actions in the 6-mode Legendre arm (with its "
+                         "parameters identified from PyElastica and the true ones) and throw them in PyElastica")
     ap.add_argument("--reuse-fits", action="store_true",
                     help="keep the fits and the correction already in --json (compute only what is missing)")
     ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "identify_and_correct.json"))
@@ -377,6 +419,11 @@ def main() -> None:
                 res["correct"] = correct(args, res["identify"])
                 with open(args.json, "w") as fh:
                     json.dump(res, fh, indent=1)
+        pe = (res.get("correct") or {}).get("pyelastica")
+        if args.legendre_correction and pe and "identified, 6 Legendre" not in pe["throws"]:
+            legendre_correction(args, res)
+            with open(args.json, "w") as fh:
+                json.dump(res, fh, indent=1)
     plot(res, args.figure)
     print_tables(res)
 
