@@ -34,7 +34,9 @@ redo the correction, e.g. for another checkpoint); ``--no-legendre`` fits only t
 
 ``--pyelastica-targets N`` also throws the first N targets in PyElastica's true arm: the policy's
 actions and those refined (in gvsjax's 2-mode model) with the nominal, the true and the parameters
-the 2-mode model identified from the PyElastica throws.
+the 2-mode model identified from the PyElastica throws; ``--legendre-correction`` adds those N actions
+refined in the 6-mode Legendre arm (with its PyElastica fit and with the true parameters; this
+refinement compiles for ~30 min and ~17 GB).
 
 Writes benchmarks/identify_and_correct.json, benchmarks/identify_pyelastica_throws.json (the
 PyElastica throws, reused by a rerun) and figures/identify_and_correct.png. Differentiating the
