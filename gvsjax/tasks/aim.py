@@ -1,13 +1,16 @@
-"""Aiming a one-shot task through the simulator: Gauss-Newton on its miss, c(a) = 0.
+"""Aiming a one-shot task through the simulator: Gauss-Newton on its miss.
 
-For each target the miss c(a) (m, >= 0) is differentiated through the
-simulator. From a grid of coarse starts over the action box (cost only) the
-``n_starts`` best are refined by Gauss-Newton steps on the scalar equation
-c(a) = 0, a <- a - c grad c / |grad c|^2 (the minimum-norm step onto the
-solution set), with a line search over step fractions (1, 1/2, 1/4, 1/8 or
-no step) and the box [-1, 1]^d enforced by clipping; the best final action
-per target wins. The throwing tasks' differentiable-physics baselines. ``plan_targets`` starts
-from given actions (a policy's), steps until each target converges, and falls back to multi-start
+A task passes its miss as a callable of (action, target): either the scalar miss c(a) (m, >= 0)
+or a residual vector r(a) whose norm is the miss (the flight's closest point minus the target).
+Each step is the minimum-norm Gauss-Newton step onto the solution set, da = -J^+ r (J the
+residual's Jacobian through the simulator; for a scalar miss -c grad c / |grad c|^2). A vector
+residual converges quadratically where the scalar miss, a cone around its zero set, converges
+only linearly. Coordinates at a bound of the box [-1, 1]^d that the step would leave are frozen
+and the step recomputed in the others (clipping the whole step would discard its descent when a
+steep coordinate presses against the box); a line search over step fractions (1, 1/2, 1/4, 1/8
+or no step), each trial clipped to the box, takes the best. ``make_solver`` refines the
+``n_starts`` best of a grid of coarse starts (cost only); ``plan_targets`` starts from given
+actions (a policy's), steps until each target converges, and falls back to multi-start
 Gauss-Newton where the miss stays large.
 """
 
@@ -22,7 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 
 FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)
-Cost = Callable[[jax.Array, jax.Array], jax.Array]  # (action (d,), target) -> miss (m)
+# (action (d,), target) -> the miss (m, a scalar) or a residual (m,) whose norm is the miss
+Cost = Callable[[jax.Array, jax.Array], jax.Array]
 
 
 def coarse_starts(n_side: int = 3, dim: int = 2) -> jax.Array:
@@ -31,28 +35,67 @@ def coarse_starts(n_side: int = 3, dim: int = 2) -> jax.Array:
     return jnp.stack(jnp.meshgrid(*([g] * dim), indexing="ij"), -1).reshape(-1, dim)
 
 
+def _norm(r: jax.Array) -> jax.Array:
+    sq = jnp.sum(r * r, -1)
+    return jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
+
+
+def miss_of(cost: Cost, action, target) -> jax.Array:
+    """The miss (m) of one action: ``cost``'s value, or its residual's norm."""
+    c = cost(action, target)
+    return c if c.ndim == 0 else _norm(c)
+
+
+def _linearized(cost: Cost, a, t) -> tuple[jax.Array, jax.Array]:
+    """The residual (m,) and its Jacobian (m, d) at ``a``: a scalar miss is the residual (c,)."""
+    shape = jax.eval_shape(cost, a, t).shape
+    if shape == ():
+        c, g = jax.value_and_grad(cost)(a, t)
+        return c[None], g[None]
+    jac = jax.jacfwd if a.shape[0] <= shape[0] else jax.jacrev
+    J, r = jac(lambda x: (lambda y: (y, y))(cost(x, t)), has_aux=True)(a)
+    return r, J
+
+
+def box_step(r: jax.Array, J: jax.Array, a: jax.Array) -> jax.Array:
+    """The minimum-norm Gauss-Newton step -J^+ r at ``a`` (d,), with the coordinates at a bound of
+    [-1, 1] that it would leave frozen and the step recomputed in the others (d rounds: freezing
+    one coordinate can turn another outward). The pseudo-inverse (singular values below 1e-10 of
+    the largest dropped) serves a rank-deficient J: a residual across the flight spans one
+    dimension less than it has."""
+    free = jnp.ones_like(a)
+    step = jnp.zeros_like(a)
+    for _ in range(a.shape[0]):
+        step = -jnp.linalg.pinv(J * free, rtol=1e-10) @ r
+        out = ((a <= -1.0) & (step < 0.0)) | ((a >= 1.0) & (step > 0.0))
+        free = jnp.where(out, 0.0, free)
+    return step * free
+
+
 def gauss_newton(cost: Cost, actions, targets, n_iters: int):
-    """``n_iters`` line-searched Gauss-Newton steps on c(a) = 0 from ``actions`` (B, d) at
-    ``targets`` (B, ...): ``(actions, costs (B,))``. Jittable."""
-    value_grad = jax.vmap(jax.value_and_grad(cost))
-    costs = jax.vmap(cost)
+    """``n_iters`` line-searched Gauss-Newton steps (``box_step``) towards miss 0 from ``actions``
+    (B, d) at ``targets`` (B, ...): ``(actions, misses (B,))``. Jittable."""
+    misses = jax.vmap(lambda a, t: miss_of(cost, a, t))
+
+    def step(a, t):
+        r, J = _linearized(cost, a, t)
+        return box_step(r, J, a)
 
     def body(a, _):
-        c, g = value_grad(a, targets)
-        step = -(c / jnp.maximum(jnp.sum(g * g, -1), 1e-12))[:, None] * g
-        trials = jnp.stack([jnp.clip(a + f * step, -1.0, 1.0) for f in FRACTIONS], 1)
-        ct = jax.vmap(costs, in_axes=(1, None), out_axes=1)(trials, targets)
+        s = jax.vmap(step)(a, targets)
+        trials = jnp.stack([jnp.clip(a + f * s, -1.0, 1.0) for f in FRACTIONS], 1)
+        ct = jax.vmap(misses, in_axes=(1, None), out_axes=1)(trials, targets)
         ct = jnp.where(jnp.isfinite(ct), ct, jnp.inf)
         best = jnp.argmin(ct, 1)
         return jnp.take_along_axis(trials, best[:, None, None], 1)[:, 0], None
 
     a, _ = jax.lax.scan(body, actions, None, length=n_iters)
-    return a, costs(a, targets)
+    return a, misses(a, targets)
 
 
 def make_solver(cost: Cost, dim: int, n_iters: int = 12, n_starts: int = 3, n_side: int = 3):
     """A jitted ``solve(targets (B, ...)) -> (actions (B, dim), costs (B,))``."""
-    costs = jax.vmap(cost)
+    costs = jax.vmap(lambda a, t: miss_of(cost, a, t))
     starts = coarse_starts(n_side, dim)
 
     @jax.jit
@@ -143,7 +186,7 @@ def plan_targets(cost: Cost, actions: np.ndarray, targets: np.ndarray,
     ``seconds``, ``fallback_seconds``.
     """
     gn = jax.jit(lambda a, t: gauss_newton(cost, a, t, chunk))
-    costs = jax.jit(lambda a, t: (a, jax.vmap(cost)(a, t)))
+    costs = jax.jit(lambda a, t: (a, jax.vmap(lambda x, y: miss_of(cost, x, y))(a, t)))
     finite = lambda c: np.where(np.isfinite(c), c, np.inf)  # noqa: E731
     t0 = time.perf_counter()
     targets = np.asarray(targets, float)

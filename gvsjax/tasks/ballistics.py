@@ -46,14 +46,15 @@ def _cubic_real_roots(b, c, d):
     return xs - b[..., None] / 3.0
 
 
-def closest_approach(p0, v0, target, g, tau_end):
-    """Exact closest distance (m) between the path p(tau), 0 <= tau <= tau_end, and target.
+def closest_offset(p0, v0, target, g, tau_end):
+    """The path's closest point to ``target`` minus the target (d,), 0 <= tau <= tau_end: ``(offset, tau*)``.
 
-    Returns ``(distance, tau*)``. d/dtau |p - target|^2 / 2 is the cubic
-    (g^2/2) tau^3 - (3/2) g v0z tau^2 + (|v0|^2 - g dz) tau + d.v0 with
-    d = p0 - target and z the vertical; its real roots (closed form, two
-    Newton polishes) and the two ends are the candidates. tau* carries no
-    gradient; by the envelope theorem the distance's gradient is still exact.
+    d/dtau |p - target|^2 / 2 is the cubic (g^2/2) tau^3 - (3/2) g v0z tau^2 + (|v0|^2 - g dz) tau
+    + d.v0 with d = p0 - target and z the vertical; its real roots (closed form, two Newton
+    polishes) and the two ends are the candidates. tau* carries no gradient; where it is interior,
+    the offset's derivative is projected across the flight (tau* re-absorbs any motion along it),
+    which makes it the derivative of the offset p(tau*(a)) - target to first order: a residual for
+    Gauss-Newton whose norm is the miss.
     """
     d = p0 - target
     c3 = 0.5 * g * g
@@ -66,17 +67,34 @@ def closest_approach(p0, v0, target, g, tau_end):
         fp = (3.0 * c3 * roots + 2.0 * c2[..., None]) * roots + c1[..., None]
         step = jnp.where(jnp.abs(fp) > 1e-12, f / jnp.where(fp == 0.0, 1.0, fp), 0.0)
         roots = roots - step
-    tau_end = jnp.asarray(tau_end)
+    tau_end = jax.lax.stop_gradient(jnp.asarray(tau_end))
     cands = jnp.concatenate([jnp.clip(roots, 0.0, tau_end[..., None]),
                              jnp.zeros_like(roots[..., :1]), tau_end[..., None]], -1)
     cands = jax.lax.stop_gradient(cands)
     dist2 = jnp.sum((flight_point(p0[..., None, :], v0[..., None, :], cands, g)
                      - target[..., None, :]) ** 2, -1)
-    i = jnp.argmin(dist2, -1)
-    best = jnp.take_along_axis(dist2, i[..., None], -1)[..., 0]
-    # sqrt(0) has an infinite derivative: guard the exact hit
-    dist = jnp.where(best > 0.0, jnp.sqrt(jnp.where(best > 0.0, best, 1.0)), 0.0)
-    return dist, jnp.take_along_axis(cands, i[..., None], -1)[..., 0]
+    tau = jnp.take_along_axis(cands, jnp.argmin(dist2, -1)[..., None], -1)[..., 0]
+    r = flight_point(p0, v0, tau, g) - target
+    vel = jax.lax.stop_gradient(v0 + _down(p0, g) * tau[..., None])
+    u = vel / jnp.maximum(jnp.linalg.norm(vel, axis=-1, keepdims=True), 1e-12)
+    dr = r - jax.lax.stop_gradient(r)
+    across = dr - jnp.sum(dr * u, -1, keepdims=True) * u
+    interior = ((tau > 0.0) & (tau < tau_end))[..., None]
+    return jax.lax.stop_gradient(r) + jnp.where(interior, across, dr), tau
+
+
+def distance(offset):
+    """|offset| over the last axis, its derivative finite at 0 (sqrt(0) has an infinite one)."""
+    sq = jnp.sum(offset * offset, -1)
+    return jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
+
+
+def closest_approach(p0, v0, target, g, tau_end):
+    """Exact closest distance (m) between the path p(tau), 0 <= tau <= tau_end, and target:
+    ``(distance, tau*)``, the norm of ``closest_offset``. By the envelope theorem the distance's
+    gradient is exact although tau* carries none."""
+    r, tau = closest_offset(p0, v0, target, g, tau_end)
+    return distance(r), tau
 
 
 def miss_metrics(miss: np.ndarray) -> dict[str, float]:

@@ -15,10 +15,11 @@ from gvsjax.tasks.throw3d.throw import (
     release_state,
     swing,
     throw_cost,
+    throw_residual,
 )
 
 __all__ = [
     "Throw3D", "Throw3DState", "Throw3DParams", "BALL_WEIGHT", "COURT", "RELEASE_SPEED_BOUND", "make_params",
     "observe", "unobserve", "on_court", "sample_target", "action_to_physical", "physical_to_action",
-    "release_state", "swing", "flight_path", "throw_cost",
+    "release_state", "swing", "flight_path", "throw_cost", "throw_residual",
 ]

@@ -1,5 +1,6 @@
 """Differentiable-physics baseline for throw3d: (T, delta, psi_R) per target by Gauss-Newton
-through the simulator (``gvsjax.tasks.aim``), started from a 3 x 3 x 3 grid of actions
+through the simulator (``gvsjax.tasks.aim``) on the residual from the target to the flight's
+closest point (``throw_residual``, whose norm is the miss), started from a 3 x 3 x 3 grid of actions
 (``solve_targets``) or from a policy's actions (``refine``), and ``plan``: the policy's action
 refined until it converges, with multi-start Gauss-Newton for the targets it still misses.
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from gvsjax.tasks import aim
 from gvsjax.tasks.throw3d.params import Throw3DParams
-from gvsjax.tasks.throw3d.throw import action_to_physical, throw_cost
+from gvsjax.tasks.throw3d.throw import action_to_physical, throw_residual
 
 
 def scanned(params: Throw3DParams) -> Throw3DParams:
@@ -31,7 +32,7 @@ def scanned(params: Throw3DParams) -> Throw3DParams:
 def solve_targets(params: Throw3DParams, targets: np.ndarray, batch: int = 250, **solver_kw) -> dict[str, Any]:
     """Solve every target (n, 3) in batches: actions, T, delta, yaw (rad), miss (m), seconds."""
     fast = scanned(params)
-    r = aim.solve_targets(lambda a, t: throw_cost(fast, a, t)[0], 3, targets, batch=batch, **solver_kw)
+    r = aim.solve_targets(lambda a, t: throw_residual(fast, a, t)[0], 3, targets, batch=batch, **solver_kw)
     T, delta, psi = action_to_physical(jnp.asarray(r["action"]), params)
     return {**r, "T": np.asarray(T), "delta": np.asarray(delta), "yaw": np.asarray(psi)}
 
@@ -40,7 +41,7 @@ def refine(params: Throw3DParams, actions: np.ndarray, targets: np.ndarray, n_it
            batch: int = 250) -> dict[str, Any]:
     """``n_iters`` Gauss-Newton steps from ``actions`` (n, 3) at ``targets`` (n, 3): as ``solve_targets``."""
     fast = scanned(params)
-    r = aim.refine_targets(lambda a, t: throw_cost(fast, a, t)[0], actions, targets, n_iters, batch)
+    r = aim.refine_targets(lambda a, t: throw_residual(fast, a, t)[0], actions, targets, n_iters, batch)
     T, delta, psi = action_to_physical(jnp.asarray(r["action"]), params)
     return {**r, "T": np.asarray(T), "delta": np.asarray(delta), "yaw": np.asarray(psi)}
 
@@ -75,7 +76,7 @@ def plan(params: Throw3DParams, actions: np.ndarray, targets: np.ndarray, n_iter
     ``fallback_seconds`` (``aim.plan_targets``).
     """
     fast = scanned(params)
-    r = aim.plan_targets(lambda a, t: throw_cost(fast, a, t)[0], actions, targets, plan_starts, n_iters=n_iters,
+    r = aim.plan_targets(lambda a, t: throw_residual(fast, a, t)[0], actions, targets, plan_starts, n_iters=n_iters,
                          chunk=chunk, tol=tol, fallback_above=fallback_above, n_starts=n_starts, batch=batch)
     T, delta, psi = action_to_physical(jnp.asarray(r["action"]), params)
     return {**r, "T": np.asarray(T), "delta": np.asarray(delta), "yaw": np.asarray(psi)}

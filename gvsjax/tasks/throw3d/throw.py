@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 
 from gvsjax.simulation import simulate
-from gvsjax.tasks.ballistics import closest_approach, flight_point, floor_time
+from gvsjax.tasks.ballistics import closest_offset, distance, flight_point, floor_time
 from gvsjax.tasks.throw3d.params import Throw3DParams
 from gvsjax.trajectory import Trajectory
 
@@ -75,10 +75,17 @@ def flight_path(p0, v0, params: Throw3DParams, n: int = 200) -> jax.Array:
     return flight_point(p0, v0, tau, params.g)
 
 
-def throw_cost(params: Throw3DParams, action, target):
-    """Cost (m), plus (T, delta, psi_R, p0, v0) of one throw. Differentiable in ``action``."""
+def throw_residual(params: Throw3DParams, action, target):
+    """The flight's closest point minus ``target`` (3,) m (``ballistics.closest_offset``: Gauss-Newton's
+    residual), plus (T, delta, psi_R, p0, v0) of one throw. Differentiable in ``action``."""
     T, delta, psi = action_to_physical(action, params)
     p0, v0 = release_state(params, T, delta, psi)
     tau_end = floor_time(p0, v0, params.g, params.court[2])
-    cost, _ = closest_approach(p0, v0, target, params.g, tau_end)
-    return cost, (T, delta, psi, p0, v0)
+    r, _ = closest_offset(p0, v0, target, params.g, tau_end)
+    return r, (T, delta, psi, p0, v0)
+
+
+def throw_cost(params: Throw3DParams, action, target):
+    """Cost (m): the norm of ``throw_residual``, plus its (T, delta, psi_R, p0, v0)."""
+    r, aux = throw_residual(params, action, target)
+    return distance(r), aux
