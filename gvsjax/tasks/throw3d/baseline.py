@@ -65,15 +65,16 @@ def plan_starts(action: np.ndarray, n_T: int = 4, n_delta: int = 3, n_yaw: int =
 
 
 def plan(params: Throw3DParams, actions: np.ndarray, targets: np.ndarray, n_iters: int = 12, chunk: int = 4,
-         tol: float = 1e-3, fallback_above: float = 0.01, n_starts: int = 4, batch: int = 100) -> dict[str, Any]:
+         tol: float = 1e-3, fallback_above: float = 0.01, n_starts: int = 8, batch: int = 100) -> dict[str, Any]:
     """The policy's actions (n, 3) refined, then multi-start where they still miss, at ``targets`` (n, 3).
 
     ``aim.plan_targets`` on the throw's miss: up to ``n_iters`` Gauss-Newton steps from each action
     (as ``refine``), in chunks of ``chunk``, a target dropping out once its miss is below ``tol`` (m);
     a target still missed by more than ``fallback_above`` (m) is thrown from every start of
-    ``plan_starts`` and the ``n_starts`` best are refined likewise; the best action wins, so no target
-    ends worse than its start. As ``refine``, plus ``start_miss``, ``steps``, ``fallback``,
-    ``fallback_seconds`` (``aim.plan_targets``).
+    ``plan_starts`` and the ``n_starts`` best are refined likewise (the least raw miss need not be in
+    the target's basin; as the refined policy leaves few targets to the fallback, it can afford eight);
+    the best action wins, so no target ends worse than its start. As ``refine``, plus ``start_miss``,
+    ``steps``, ``fallback``, ``fallback_seconds`` (``aim.plan_targets``).
     """
     fast = scanned(params)
     r = aim.plan_targets(lambda a, t: throw_residual(fast, a, t)[0], actions, targets, plan_starts, n_iters=n_iters,
