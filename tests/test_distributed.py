@@ -26,8 +26,11 @@ from gvsjax.ppo import checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 UPDATES = 4  # 16 throws each; the two processes stop after 2 and resume
+# the swing in float64: in float32 (basketball's training default) the split run's throws round
+# differently from the single run's, and PPO carries that past the tolerance below (2.7e-5
+# relative in a gradient norm by the third update)
 RUN = ["task=basketball", "num_envs=16", "num_minibatches=2", "update_epochs=1", "anneal_lr=false",
-       "progress=false", "checkpoint_every=0", "eval_targets=0", "seed=3"]
+       "progress=false", "checkpoint_every=0", "eval_targets=0", "seed=3", "sim_dtype=float64"]
 
 
 def _free_port() -> int:

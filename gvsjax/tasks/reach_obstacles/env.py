@@ -143,7 +143,8 @@ class ReachObstacles(Environment):
             raise ValueError(f"{self.name}'s arm is gv.soft_arm's default (two tendon groups, 9 strain coordinates) "
                              f"and episode_steps=30; got {len(params.arm.robot.tendons)} tendons, "
                              f"{params.arm.robot.n_dofs} coordinates, episode_steps={params.episode_steps}")
-        if self.planar and not (isinstance(params.yaw_range, (int, float)) and params.yaw_range == 0):
+        # traced params (a jitted reset) were checked where they were made
+        if self.planar and concrete(params.yaw_range) and np.any(np.asarray(params.yaw_range, float) != 0.0):
             raise ValueError(f"yaw_range={params.yaw_range!r} is invalid for {self.name}: the planar task keeps its "
                              "plane (0 only)")
         n_c = params.arm.robot.contact.n_points if params.arm.robot.contact is not None else 0
