@@ -24,6 +24,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from gvsjax.tasks.ballistics import distance
+
 FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)
 # (action (d,), target) -> the miss (m, a scalar) or a residual (m,) whose norm is the miss
 Cost = Callable[[jax.Array, jax.Array], jax.Array]
@@ -35,15 +37,10 @@ def coarse_starts(n_side: int = 3, dim: int = 2) -> jax.Array:
     return jnp.stack(jnp.meshgrid(*([g] * dim), indexing="ij"), -1).reshape(-1, dim)
 
 
-def _norm(r: jax.Array) -> jax.Array:
-    sq = jnp.sum(r * r, -1)
-    return jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
-
-
 def miss_of(cost: Cost, action, target) -> jax.Array:
     """The miss (m) of one action: ``cost``'s value, or its residual's norm."""
     c = cost(action, target)
-    return c if c.ndim == 0 else _norm(c)
+    return c if c.ndim == 0 else distance(c)
 
 
 def _linearized(cost: Cost, a, t) -> tuple[jax.Array, jax.Array]:
