@@ -1,6 +1,7 @@
 """Checkpoints (gvsjax.ppo.checkpoint): atomic writes, a run folder or a file as the path,
 damaged or missing files named in a ``CheckpointError`` before anything compiles, states of
-another shape refused, stale temporary files removed, and ``load_policy``/``make_policy``."""
+another shape refused, stale temporary files removed, and ``load_policy``/``make_policy`` (the
+network alone restored)."""
 
 import gvsjax  # noqa: F401, I001  (first: it configures JAX)
 import dataclasses
@@ -97,3 +98,9 @@ def test_load_policy_restores_the_trained_network(tmp_path, monkeypatch):
     assert actions.shape == (5, 2) and actions.dtype == jnp.float64 and float(jnp.max(jnp.abs(actions))) <= 1.0
     expected = policy_action(state.params, make_network(config, 2).apply, obs.astype(jnp.float32))
     np.testing.assert_array_equal(actions, np.asarray(expected, np.float64))
+    # a checkpoint whose env state has another structure (the env gained a state field since):
+    # the policy still loads, resuming is refused
+    ckpt.save(tmp_path / ckpt.FILE_NAME, state.replace(env_state={"older": jnp.zeros(4)}),
+              {"task": "bandit", "sim_dtype": "float64", **dataclasses.asdict(config)}, "bandit", 5)
+    jax.tree.map(np.testing.assert_array_equal, ckpt.load_policy(tmp_path)[3], state.params)
+    raises_naming("does not match", ckpt.load, tmp_path, state, exc=ckpt.CheckpointError)

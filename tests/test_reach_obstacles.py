@@ -151,16 +151,19 @@ def test_figures_draw_the_medians_and_the_obstacles(params, monkeypatch, tmp_pat
     out = lambda: {"distance": rng.uniform(0.01, 0.5, (n, T)), "depth": rng.uniform(0, 0.02, (n, T)),  # noqa: E731
                    "valid": np.ones((n, T), bool), "q": np.zeros((n, T + 1, 9)),
                    "target": np.tile(np.asarray(params.target), (n, 1)), "yaw": np.zeros(n)}
-    pol, held = out(), out()
+    pol, held, ramped = out(), out(), out()
     figs = capture_figures(monkeypatch)
     robots = [ro.scene(params, 0.0).robot] * 3
-    paths = ro.figures.evaluation_figures(params, {"policy": pol, "held_action": held, "dt": 0.1}, tmp_path, robots)
+    paths = ro.figures.evaluation_figures(params, {"policy": pol, "held_action": held, "ramped_action": ramped,
+                                                   "dt": 0.1}, tmp_path, robots)
     assert [p.name for p in paths] == ["reach_obstacles_over_time.png", "reach_obstacles_final.png"]
     lines = figs["reach_obstacles_over_time.png"]
     line = finite_line([ln for ln in lines if ln["axes"] == 0], "policy, median", min_points=T)
     np.testing.assert_allclose(line["y"], 100 * np.median(pol["distance"], 0))
     line = finite_line([ln for ln in lines if ln["axes"] == 1], "reference action, held, median", min_points=T)
     np.testing.assert_allclose(line["y"], 1000 * np.median(held["depth"], 0))
+    line = finite_line([ln for ln in lines if ln["axes"] == 0], "reference action, ramped, median", min_points=T)
+    np.testing.assert_allclose(line["y"], 100 * np.median(ramped["distance"], 0))
     bars = [ln for ln in figs["reach_obstacles_final.png"] if ln["axes"] == 0 and ln["x"].size == 2]
     assert len(bars) >= 12  # the cage's bars (the arm's lines have more points)
 
@@ -185,12 +188,49 @@ def test_planar_posts_let_a_slow_approach_through_and_stop_a_swing():
     without touching; applied at once, the swing presses > 1 cm into a post."""
     env2 = make("reach_obstacles_2d")
     p2 = dataclasses.replace(env2.default_params(), target_jitter=(0.0, 0.0, 0.0))
-    a = jnp.asarray(env2.reference_action)[::2]
-
-    def ramp(seconds):
-        return lambda obs: a * jnp.clip((3.0 * (1.0 - obs[..., -1:]) + 0.1) / seconds, 0.0, 1.0)
-
-    slow, fast = (jax.jit(lambda k, s=s: ro.rollout(env2, p2, ramp(s), k))(jax.random.PRNGKey(0)[None])
-                  for s in (1.5, 0.1))
+    slow, fast = (jax.jit(lambda k, s=s: ro.rollout(env2, p2, ro.held_policy(env2, ramp_s=s), k))(
+        jax.random.PRNGKey(0)[None]) for s in (1.5, 0.0))
     assert float(slow["distance"][0, -1]) < 0.05 and float(slow["depth"][0].max()) == 0.0
     assert float(fast["depth"][0].max()) > 0.01
+
+
+@pytest.mark.slow
+def test_planar_variant_observes_its_last_action_and_charges_its_change():
+    """The reward's action-rate term against its formula over two steps (from rest, then a change),
+    the last action at the end of the observation, under jit."""
+    env2 = make("reach_obstacles_2d")
+    p2 = dataclasses.replace(env2.default_params(), action_rate_weight=0.5)
+    key = jax.random.PRNGKey(1)
+    obs, state = jax.jit(env2.reset)(key, p2)
+    assert obs.shape == (env2.obs_size,) and np.asarray(obs[-2:]).tolist() == [0.0, 0.0]
+    step = jax.jit(env2.step)
+    before = jnp.zeros(2)
+    for a in (jnp.array([0.3, -0.2]), jnp.array([0.1, 0.4])):
+        obs, state, reward, _, info = step(key, state, a, p2)
+        d = float(info["distance"])
+        assert float(info["depth"]) == 0.0  # small actions from rest: the posts stay untouched
+        shaped = 0.5 * (np.exp(-p2.k * d) + np.exp(-p2.precision * p2.k * d))
+        np.testing.assert_allclose(float(reward), shaped - 0.5 * float(jnp.mean((a - before) ** 2)), rtol=1e-10)
+        np.testing.assert_array_equal(np.asarray(obs[-2:]), np.asarray(a))
+        before = a
+    space = env2.observation_space()
+    assert space.low[-3] == 0.0 and space.low[-1] == -1.0 and space.high[-2] == 1.0
+    assert np.isinf(space.low[0]) and space.low[33] == ro.env.GAP_RANGE[0] / ro.env.GAP_SCALE
+    with pytest.raises(ValueError, match="action_rate_weight"):
+        env2.reset(key, dataclasses.replace(p2, action_rate_weight=-0.1))
+
+
+def test_ramped_baseline_raises_the_turned_reference_action_over_its_rise():
+    """The k-th control step (from 1) holds k dt / ramp_s of the action, read from the observed time
+    left; the 3D one turns with the scene's yaw (observed as cos, sin)."""
+    env2, env3 = make("reach_obstacles_2d"), make("reach_obstacles")
+    steps = np.arange(30)
+    obs = np.zeros((30, env2.obs_size))
+    obs[:, 30], obs[:, 43] = 1.0, 1.0 - steps / 30
+    got = np.asarray(jax.jit(ro.held_policy(env2, ramp_s=1.5))(jnp.asarray(obs)))
+    frac = np.minimum((steps + 1) * 0.1 / 1.5, 1.0)
+    np.testing.assert_allclose(got, frac[:, None] * np.array([0.7, 1.0]), rtol=1e-12)
+    obs3 = np.zeros((1, env3.obs_size))
+    obs3[0, 31], obs3[0, 43] = 1.0, 1.0 - 2 / 30  # the scene turned by 90 deg, the third step
+    got3 = np.asarray(ro.held_policy(env3, ramp_s=1.5)(jnp.asarray(obs3)))[0]
+    np.testing.assert_allclose(got3, 0.2 * np.array([0.0, 0.5, 0.0, 0.9]), atol=1e-12)

@@ -151,14 +151,18 @@ def load_raw(path) -> dict:
     return raw
 
 
-def restore_state(template, state_bytes: bytes):
-    """Fill ``template`` (a pytree of the right structure) from saved state bytes.
+def restore_state(template, state_bytes: bytes, field: str | None = None):
+    """Fill ``template`` (a pytree of the right structure) from saved state bytes, or, given
+    ``field``, from that field of the saved state alone (e.g. ``"params"``).
 
     A saved state of another structure or shape (e.g. another ``num_envs`` or
     network size) raises ``CheckpointError`` instead of loading a mix.
     """
     try:
-        restored = serialization.from_bytes(_raw(template), state_bytes)
+        if field is None:
+            restored = serialization.from_bytes(_raw(template), state_bytes)
+        else:
+            restored = serialization.from_state_dict(_raw(template), serialization.msgpack_restore(state_bytes)[field])
     except Exception as e:  # flax raises ValueError/KeyError on a structure mismatch
         raise CheckpointError(f"the checkpoint's state does not match this configuration: {e}") from None
     for (where, t), r in zip(jax.tree_util.tree_leaves_with_path(_raw(template)), jax.tree.leaves(restored)):
@@ -196,7 +200,8 @@ def load_policy(path):
     ``env_params`` are the task's ``default_params()``, the evaluation distribution. A run
     trained with ``randomize=`` gives its ``Randomized`` env, whose ``evaluate`` is the task's
     on the nominal model (``gvsjax.tasks.randomized.nominal`` gives the task and a policy of its
-    observations).
+    observations). Only the network params are restored, so a policy stays loadable when the
+    env's internal state (saved for resuming) gains a field; its observations must not change.
     """
     meta = load_raw(path)
     config = config_from_json(meta["config"], f"the config saved in {path}")
@@ -204,9 +209,9 @@ def load_policy(path):
                meta["config"].get("randomize_observe", False))
     env_params = env.default_params()
     template = jax.eval_shape(lambda: init(config, env, env_params, jax.random.PRNGKey(0)))
-    template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template)
-    state = restore_state(template, meta["train_state"])  # CheckpointError if mismatched
-    return config, env, env_params, state.params
+    template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template.params)
+    params = restore_state(template, meta["train_state"], "params")  # CheckpointError if mismatched
+    return config, env, env_params, params
 
 
 def make_policy(config, action_size: int, net_params):

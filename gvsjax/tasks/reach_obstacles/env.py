@@ -10,11 +10,14 @@ tip must end within ``success_distance`` (5 cm) of the target.
 Observation (44,) for the default arm: ``arm3d.arm_features`` (24), the target
 (3), target minus tip (3, x ``ERROR_GAIN``), the scene's yaw as (cos, sin) (2),
 the gap at each of the 11 contact samples (clipped to [-5, 20] cm, in units of
-5 cm: the policy feels how close it is) and the fraction of the episode left.
-Reward per step (exp(-k d) + exp(-precision k d)) / 2 minus
-``penetration_weight`` x min(depth / tolerance, 2), depth the deepest penetration
-during the step: in [-1, 1]. A non-finite or out-of-bound state ends the episode
-with ``info["valid"] = False`` and reward 0.
+5 cm: the policy feels how close it is) and the fraction of the episode left; the
+planar task (46,) also observes its last action. Reward per step
+(exp(-k d) + exp(-precision k d)) / 2 minus ``penetration_weight`` x
+min(depth / tolerance, 2), depth the deepest penetration during the step, minus
+``action_rate_weight`` x the mean squared change of the action (the first
+measured from the rest action, 0): in [-1 - 4 action_rate_weight, 1]. A
+non-finite or out-of-bound state ends the episode with ``info["valid"] = False``
+and reward 0.
 """
 
 from __future__ import annotations
@@ -42,6 +45,8 @@ GAP_RANGE = (-0.05, 0.2)  # m, the observed gaps are clipped to this
 GAP_SCALE = 0.05  # m
 SAVE_EVERY = 2  # ars443 steps between the penetration checks (12.5 ms: shorter than a bar's contact)
 YAW_OBS = slice(30, 32)  # where (cos, sin) of the yaw sit in the observation
+LEFT_OBS = 43  # where the fraction of the episode left sits
+RAMP_S = 1.5  # s, the open-loop ramp baseline's rise: slow enough to pass the bars (docs/tasks_3d.md)
 
 
 @struct.dataclass
@@ -55,6 +60,7 @@ class ReachObstaclesState:
     gap: jax.Array  # (n_c,) m, each contact sample's gap at the last control step
     deepest: jax.Array  # () m, the deepest penetration so far (>= 0)
     step: jax.Array  # () int32
+    last_action: jax.Array  # (4,) the tendon groups' last action (0 at rest)
 
 
 def scene(params: ReachObstaclesParams, yaw) -> arm3d.ArmParams:
@@ -71,14 +77,16 @@ def gaps(params: ReachObstaclesParams, yaw, q, qd) -> jax.Array:
     return report(scene(params, yaw).robot, q, qd, 0.0)[1]
 
 
-def observe(state: ReachObstaclesState, params: ReachObstaclesParams) -> jax.Array:
-    """The observation of ``state`` (see the module docstring)."""
+def observe(state: ReachObstaclesState, params: ReachObstaclesParams, last_action: bool = False) -> jax.Array:
+    """The observation of ``state`` (see the module docstring); ``last_action``: end with the x-z
+    groups' last action (the planar task's)."""
     left = 1.0 - state.step / params.episode_steps
     g = jnp.clip(state.gap, *GAP_RANGE) / GAP_SCALE
+    tail = [state.last_action[::2].astype(state.q.dtype)] if last_action else []
     return jnp.concatenate([arm3d.arm_features(params.arm.robot, state.q, state.qd, state.tip, state.tip_velocity),
                             state.target, ERROR_GAIN * (state.target - state.tip),
                             jnp.stack([jnp.cos(state.yaw), jnp.sin(state.yaw)]), g,
-                            jnp.asarray(left, state.q.dtype)[None]])
+                            jnp.asarray(left, state.q.dtype)[None], *tail])
 
 
 def start(key: jax.Array, params: ReachObstaclesParams) -> ReachObstaclesState:
@@ -91,18 +99,24 @@ def start(key: jax.Array, params: ReachObstaclesParams) -> ReachObstaclesState:
     q, qd = arm3d.rest(robot)
     return ReachObstaclesState(q=q, qd=qd, tip=tip_frame(robot, q)[1], tip_velocity=jnp.zeros(3), target=target,
                                yaw=yaw, gap=gaps(params, yaw, q, qd), deepest=jnp.zeros(()),
-                               step=jnp.zeros((), jnp.int32))
+                               step=jnp.zeros((), jnp.int32), last_action=jnp.zeros(4, q.dtype))
 
 
-def held_policy(env: ReachObstacles, action=None) -> Policy:
-    """The open-loop baseline: ``action`` (4,) (default ``env.reference_action``; given for yaw 0)
-    turned with the scene and held, as ``env``'s actions."""
+def held_policy(env: ReachObstacles, action=None, ramp_s: float = 0.0, params=None) -> Policy:
+    """The open-loop baselines: ``action`` (4,) (default ``env.reference_action``; given for yaw 0)
+    turned with the scene, as ``env``'s actions: applied at once and held (``ramp_s`` 0), or raised
+    linearly to it over ``ramp_s`` seconds of ``params``' control steps (default: the task's) and held."""
     a = jnp.asarray(env.reference_action if action is None else action)
+    p = params if params is not None else env.default_params()
+    steps, dt = p.episode_steps, p.arm.control_dt
 
     def policy(obs):
         c, s = obs[..., YAW_OBS.start], obs[..., YAW_OBS.start + 1]
         groups = [(a[2 * g] * c - a[2 * g + 1] * s, a[2 * g] * s + a[2 * g + 1] * c) for g in range(len(a) // 2)]
         full = jnp.clip(jnp.stack([x for pair in groups for x in pair], -1), -1.0, 1.0)
+        if ramp_s > 0:  # the k-th control step (from 1) holds k dt / ramp_s of the action
+            done = jnp.round((1.0 - obs[..., LEFT_OBS]) * steps)
+            full = full * jnp.clip((done + 1.0) * dt / ramp_s, 0.0, 1.0)[..., None]
         return full[..., ::2] if env.planar else full
 
     return policy
@@ -134,6 +148,10 @@ class ReachObstacles(Environment):
     def default_params(self) -> ReachObstaclesParams:
         return ReachObstaclesParams()
 
+    def observe(self, state: ReachObstaclesState, params: ReachObstaclesParams) -> jax.Array:
+        """The observation of ``state`` (the planar task's ends with its last action)."""
+        return observe(state, params, self.planar)
+
     def _check(self, params: ReachObstaclesParams) -> None:
         arm3d.check(params.arm)
         if params.arm.actuation != "tendon":
@@ -157,7 +175,8 @@ class ReachObstacles(Environment):
         jitter = params.target_jitter
         if concrete(jitter) and not (np.shape(jitter) == (3,) and np.all(np.asarray(jitter, float) >= 0)):
             raise ValueError(f"target_jitter={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
-        for name, value, low in (("yaw_range", params.yaw_range, 0.0),
+        for name, value, low in (("yaw_range", params.yaw_range, 0.0), ("action_rate_weight",
+                                                                       params.action_rate_weight, 0.0),
                                  ("tolerance", params.tolerance, 1e-6), ("success_distance", params.success_distance,
                                                                         1e-6)):
             if isinstance(value, (int, float)) and not value >= low:
@@ -168,61 +187,74 @@ class ReachObstacles(Environment):
 
     def observation_space(self, params=None) -> Box:
         low, high = np.full(self.obs_size, -np.inf), np.full(self.obs_size, np.inf)
-        low[-12:-1], high[-12:-1] = GAP_RANGE[0] / GAP_SCALE, GAP_RANGE[1] / GAP_SCALE
+        gap = slice(32, 43)  # after the yaw: the 11 gaps, then the time left (and the planar last action)
+        low[gap], high[gap] = GAP_RANGE[0] / GAP_SCALE, GAP_RANGE[1] / GAP_SCALE
         low[YAW_OBS], high[YAW_OBS] = -1.0, 1.0
-        low[-1], high[-1] = 0.0, 1.0
+        low[43], high[43] = 0.0, 1.0
+        low[44:], high[44:] = -1.0, 1.0  # the planar task's last action
         return Box(low, high)
 
     def reset(self, key, params: ReachObstaclesParams):
         """The arm at rest; the scene's yaw and the target drawn from ``key``."""
         self._check(params)
         state = start(key, params)
-        return observe(state, params), state
+        return self.observe(state, params), state
 
     def step(self, key, state: ReachObstaclesState, action, params: ReachObstaclesParams):
         """One control step (tensions held for ``control_dt``): ``(obs, state, reward, done, info)``."""
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
         arm = scene(params, state.yaw)
-        tr = arm3d.control_step(arm, state.q, state.qd, self.full_action(action), save_every=SAVE_EVERY)[0]
+        full = self.full_action(action)
+        tr = arm3d.control_step(arm, state.q, state.qd, full, save_every=SAVE_EVERY)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         depth = jnp.maximum(-jnp.min(tr.contact_gap), 0.0)
         d = jnp.linalg.norm(tip - state.target)
         valid = finite & arm3d.healthy(arm.robot, q, qd) & jnp.isfinite(d) & jnp.isfinite(depth)
         shaped = 0.5 * (jnp.exp(-params.k * d) + jnp.exp(-params.precision * params.k * d))
-        reward = jnp.where(valid, shaped - params.penetration_weight * jnp.minimum(depth / params.tolerance, 2.0), 0.0)
+        rate = jnp.sum((full - state.last_action) ** 2) / self.action_size  # the planar zeros add nothing
+        penalty = (params.penetration_weight * jnp.minimum(depth / params.tolerance, 2.0)
+                   + params.action_rate_weight * rate)
+        reward = jnp.where(valid, shaped - penalty, 0.0)
         keep = lambda new, old: jnp.where(valid, new, old)  # noqa: E731
         new = dataclasses.replace(state, q=keep(q, state.q), qd=keep(qd, 0.0 * state.qd), tip=keep(tip, state.tip),
                                   tip_velocity=keep(tip_velocity, 0.0 * state.tip_velocity),
                                   gap=keep(tr.contact_gap[-1], state.gap),
-                                  deepest=keep(jnp.maximum(state.deepest, depth), state.deepest), step=state.step + 1)
+                                  deepest=keep(jnp.maximum(state.deepest, depth), state.deepest), step=state.step + 1,
+                                  last_action=keep(full.astype(state.last_action.dtype), state.last_action))
         done = (new.step >= self.episode_length) | ~valid
         info = {"distance": d, "depth": depth, "valid": valid, "truncated": jnp.zeros((), bool)}
-        return observe(new, params), new, reward, done, info
+        return self.observe(new, params), new, reward, done, info
 
     # ------------------------------------------------------------------ evaluation
 
     def evaluate(self, params: ReachObstaclesParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
-        """``n_episodes`` episodes from ``reset`` keys of ``seed`` under ``policy`` and under the held
-        ``reference_action`` (open loop, turned with the scene)."""
+        """``n_episodes`` episodes from ``reset`` keys of ``seed`` under ``policy`` and under two
+        open-loop baselines, the ``reference_action`` turned with the scene: applied at once and held,
+        and raised over ``RAMP_S`` then held."""
         self._check(params)
         keys = jax.random.split(jax.random.PRNGKey(seed), n_episodes)
         run = jax.jit(lambda k, pol: rollout(self, params, pol, k), static_argnums=1)
-        pol, held = ({k: np.asarray(v) for k, v in run(keys, p).items()}
-                     for p in (policy, held_policy(self)))
+        pol, held, ramped = ({k: np.asarray(v) for k, v in run(keys, p).items()}
+                             for p in (policy, held_policy(self, params=params),
+                                       held_policy(self, ramp_s=RAMP_S, params=params)))
         metrics = {"n_episodes": int(n_episodes), "valid_fraction": float(np.mean(pol["valid"][:, -1])),
-                   "policy": final_summary(pol, params), "held_action": final_summary(held, params)}
+                   "policy": final_summary(pol, params), "held_action": final_summary(held, params),
+                   "ramped_action": final_summary(ramped, params)}
         d, deepest = _final(pol)
         rows = {"target_x": pol["target"][:, 0], "target_y": pol["target"][:, 1], "target_z": pol["target"][:, 2],
                 "yaw": pol["yaw"], "final_distance_m": d, "deepest_penetration_m": deepest,
-                "success": (d < params.success_distance) & (deepest <= params.tolerance),
-                "held_action_distance_m": _final(held)[0], "valid": pol["valid"][:, -1]}
+                "success": _success(pol, params),
+                "held_action_distance_m": _final(held)[0], "ramped_action_distance_m": _final(ramped)[0],
+                "ramped_action_success": _success(ramped, params), "valid": pol["valid"][:, -1]}
         return EvalResult(metrics=metrics, rows=rows, extra={"policy": pol, "held_action": held,
-                                                             "dt": params.arm.control_dt})
+                                                             "ramped_action": ramped, "dt": params.arm.control_dt})
 
     def summary(self, metrics) -> str:
         parts = []
-        for name in ("policy", "held_action"):
+        for name in ("policy", "held_action", "ramped_action"):
+            if name not in metrics:  # an evaluation written before the ramp baseline
+                continue
             m = metrics[name]
             parts.append(f"{name.replace('_', ' ')}: success {100 * m['success']:.1f}% (tip within 5 cm "
                          f"{100 * m['reached']:.1f}%, penetration beyond 1 cm {100 * m['penetrated']:.1f}%), final "
@@ -256,6 +288,11 @@ def _final(out: dict) -> tuple[np.ndarray, np.ndarray]:
     return np.where(ok, out["distance"][:, -1], np.inf), np.where(ok, out["depth"].max(axis=1), np.inf)
 
 
+def _success(out: dict, params: ReachObstaclesParams) -> np.ndarray:
+    d, deepest = _final(out)
+    return (d < params.success_distance) & (deepest <= params.tolerance)
+
+
 def final_summary(out: dict, params: ReachObstaclesParams) -> dict[str, float]:
     """Success (tip within ``success_distance`` at the end, never deeper than ``tolerance``), the
     share penetrating deeper, the final distance (m) and the deepest penetration (m); a diverged
@@ -284,11 +321,13 @@ class ReachObstacles2D(ReachObstacles):
     that plane)."""
 
     name = "reach_obstacles_2d"
+    obs_size = 46  # and its last action
     action_size = 2
     planar = True
     reference_action = (0.7, 0.0, 1.0, 0.0)
 
     def default_params(self) -> ReachObstaclesParams:
         lay = {k: jnp.asarray(v) for k, v in posts().items()}
+        # without the action-rate term its policy chatters at the control rate, at the same success
         return ReachObstaclesParams(start=lay["start"], end=lay["end"], radius=lay["radius"], target=POSTS_TARGET,
-                                    target_jitter=(0.03, 0.0, 0.03))
+                                    target_jitter=(0.03, 0.0, 0.03), action_rate_weight=0.1)

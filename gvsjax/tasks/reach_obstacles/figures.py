@@ -13,9 +13,10 @@ from gvsjax.model import Robot
 from gvsjax.tasks.draw3d import backbones, draw_arm, setup_axes
 
 
-def over_time(policy: dict, held: dict, dt: float, tolerance: float, success: float, path) -> Path:
+def over_time(policy: dict, held: dict, dt: float, tolerance: float, success: float, path,
+              ramped: dict | None = None) -> Path:
     """Median and 5-95% band of the tip's distance to the target and of each step's deepest
-    penetration, for the policy and the held reference action."""
+    penetration, for the policy and the held reference action; the median alone for the ramped one."""
     t = dt * np.arange(1, policy["distance"].shape[1] + 1)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, scale, unit, limit in ((axes[0], "distance", 100.0, "tip to target [cm]", success),
@@ -24,6 +25,10 @@ def over_time(policy: dict, held: dict, dt: float, tolerance: float, success: fl
             x = scale * np.where(out["valid"], out[key], np.nan)
             ax.fill_between(t, np.nanpercentile(x, 5, 0), np.nanpercentile(x, 95, 0), alpha=0.2, color=color)
             ax.plot(t, np.nanmedian(x, 0), color=color, lw=2, label=f"{label}, median")
+        if ramped is not None:
+            x = scale * np.where(ramped["valid"], ramped[key], np.nan)
+            ax.plot(t, np.nanmedian(x, 0), color="tab:purple", lw=1.5, ls="--",
+                    label="reference action, ramped, median")
         ax.axhline(scale * limit, color="tab:green", ls=":", lw=1, label="success limit")
         ax.set_xlabel("time [s]")
         ax.set_ylabel(unit)
@@ -65,7 +70,7 @@ def evaluation_figures(params, extra: dict, out: Path, robots: list[Robot]) -> l
     pol, held = extra["policy"], extra["held_action"]
     k = len(robots)
     return [over_time(pol, held, extra["dt"], params.tolerance, params.success_distance,
-                      out / "reach_obstacles_over_time.png"),
+                      out / "reach_obstacles_over_time.png", extra.get("ramped_action")),
             final_arms(robots, pol["q"][:k, -1], pol["target"][:k], params.success_distance,
                        out / "reach_obstacles_final.png")]
 

@@ -44,5 +44,8 @@ class ReachObstaclesParams:
     precision: float = 10.0
     tolerance: float = 0.01  # m, the penetration a success allows
     penetration_weight: float = 0.5
+    # minus action_rate_weight x mean((a - a_before)^2) over the task's actions: damps a control-rate
+    # chatter (a bang-bang limit cycle around the target) and a sudden start (a swing into the bars)
+    action_rate_weight: float = 0.0
     success_distance: float = 0.05  # m
     episode_steps: int = struct.field(pytree_node=False, default=30)  # control steps (3 s)
