@@ -49,8 +49,12 @@ def _linearized(cost: Cost, a, t) -> tuple[jax.Array, jax.Array]:
     if shape == ():
         c, g = jax.value_and_grad(cost)(a, t)
         return c[None], g[None]
+    def both(x):  # the residual as output and aux: one evaluation gives it and its Jacobian
+        y = cost(x, t)
+        return y, y
+
     jac = jax.jacfwd if a.shape[0] <= shape[0] else jax.jacrev
-    J, r = jac(lambda x: (lambda y: (y, y))(cost(x, t)), has_aux=True)(a)
+    J, r = jac(both, has_aux=True)(a)
     return r, J
 
 

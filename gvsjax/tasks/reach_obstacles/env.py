@@ -187,11 +187,11 @@ class ReachObstacles(Environment):
 
     def observation_space(self, params=None) -> Box:
         low, high = np.full(self.obs_size, -np.inf), np.full(self.obs_size, np.inf)
-        gap = slice(32, 43)  # after the yaw: the 11 gaps, then the time left (and the planar last action)
+        gap = slice(YAW_OBS.stop, LEFT_OBS)  # the 11 gaps sit between the yaw and the time left
         low[gap], high[gap] = GAP_RANGE[0] / GAP_SCALE, GAP_RANGE[1] / GAP_SCALE
         low[YAW_OBS], high[YAW_OBS] = -1.0, 1.0
-        low[43], high[43] = 0.0, 1.0
-        low[44:], high[44:] = -1.0, 1.0  # the planar task's last action
+        low[LEFT_OBS], high[LEFT_OBS] = 0.0, 1.0
+        low[LEFT_OBS + 1:], high[LEFT_OBS + 1:] = -1.0, 1.0  # the planar task's last action
         return Box(low, high)
 
     def reset(self, key, params: ReachObstaclesParams):
@@ -253,8 +253,6 @@ class ReachObstacles(Environment):
     def summary(self, metrics) -> str:
         parts = []
         for name in ("policy", "held_action", "ramped_action"):
-            if name not in metrics:  # an evaluation written before the ramp baseline
-                continue
             m = metrics[name]
             parts.append(f"{name.replace('_', ' ')}: success {100 * m['success']:.1f}% (tip within 5 cm "
                          f"{100 * m['reached']:.1f}%, penetration beyond 1 cm {100 * m['penetrated']:.1f}%), final "
