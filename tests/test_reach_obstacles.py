@@ -234,3 +234,54 @@ def test_ramped_baseline_raises_the_turned_reference_action_over_its_rise():
     obs3[0, 31], obs3[0, 43] = 1.0, 1.0 - 2 / 30  # the scene turned by 90 deg, the third step
     got3 = np.asarray(ro.held_policy(env3, ramp_s=1.5)(jnp.asarray(obs3)))[0]
     np.testing.assert_allclose(got3, 0.2 * np.array([0.0, 0.5, 0.0, 0.9]), atol=1e-12)
+
+
+@pytest.mark.slow
+def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
+    """With ``residual_scale`` s the applied tendon action is clip(ramp + s x action), the ramp (the
+    reference action turned by the drawn yaw, (k + 1) dt / 1.5 s of it at step k) by hand: zero
+    actions apply the ramp baseline's; with ``final_weight`` w the reward's closeness term counts
+    1 + w times at the last step only; under jit and vmap."""
+    env = make("reach_obstacles")
+    res = dataclasses.replace(env.default_params(), yaw_range=math.pi, residual_scale=0.5, final_weight=4.0)
+    keys = jax.random.split(jax.random.PRNGKey(4), 2)
+    state = jax.jit(jax.vmap(env.reset, (0, None)))(keys, res)[1]
+    step = jax.jit(jax.vmap(env.step, (0, 0, 0, None)))
+    ref, c, s = np.array(env.reference_action), np.cos(np.asarray(state.yaw)), np.sin(np.asarray(state.yaw))
+    turned = np.stack([ref[0] * c - ref[1] * s, ref[0] * s + ref[1] * c, ref[2] * c - ref[3] * s,
+                       ref[2] * s + ref[3] * c], -1)
+    assert np.ptp(np.asarray(state.yaw)) > 0.1
+    correction = np.array([[0.9, -0.4, 0.8, 0.1], [0.0, 0.0, 0.0, 0.0]])
+    for k in range(30):
+        obs, state, reward, done, info = step(keys, state, jnp.asarray(correction), res)
+        prior = turned * min((k + 1) * 0.1 / 1.5, 1.0)
+        np.testing.assert_allclose(np.asarray(state.last_action), np.clip(prior + 0.5 * correction, -1, 1), atol=1e-12)
+        d, depth = np.asarray(info["distance"]), np.asarray(info["depth"])
+        shaped = 0.5 * (np.exp(-2 * d) + np.exp(-20 * d)) * (5.0 if k == 29 else 1.0)
+        np.testing.assert_allclose(np.asarray(reward), shaped - 0.5 * np.minimum(depth / 0.01, 2), rtol=1e-10)
+        if k == 2:  # the ramp baseline's next action, at step 3 of 15
+            np.testing.assert_allclose(np.asarray(ro.held_policy(env, ramp_s=1.5)(obs[1:])),
+                                       np.asarray(state.last_action)[1:] * 4 / 3, atol=1e-12)
+    assert np.all(np.asarray(done)) and np.all(np.asarray(info["valid"]))
+    for name in ("residual_scale", "final_weight"):
+        with pytest.raises(ValueError, match=name):
+            env.reset(keys[0], dataclasses.replace(res, **{name: -1.0}))
+
+
+def test_train_variant_registers_the_task_with_its_params_replaced():
+    """``experiments/train_variant.py``: the variant's default params carry the replacements and
+    nothing else changes; an unknown field is refused, naming the fields."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "experiments" / "train_variant.py"
+    spec = importlib.util.spec_from_file_location("train_variant", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    name = module.variant("reach_obstacles_2d", {"residual_scale": 1.0, "final_weight": 10.0})
+    env, base = make(name), make("reach_obstacles_2d").default_params()
+    got = env.default_params()
+    assert (got.residual_scale, got.final_weight) == (1.0, 10.0) and env.obs_size == 46
+    assert (got.action_rate_weight, got.k, got.target_jitter) == (base.action_rate_weight, base.k, base.target_jitter)
+    with pytest.raises(SystemExit, match="final_weight"):
+        module.variant("reach_obstacles", {"finalweight": 1.0})

@@ -10,12 +10,14 @@ from gvsjax.tasks.reach_obstacles.env import (
     ReachObstacles,
     ReachObstacles2D,
     ReachObstaclesState,
+    absolute,
     held_policy,
+    ramped_reference,
     rollout,
     scene,
 )
 from gvsjax.tasks.reach_obstacles.layouts import cage, contact_arm, posts
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
 
-__all__ = ["ReachObstacles", "ReachObstacles2D", "ReachObstaclesState", "ReachObstaclesParams", "cage", "contact_arm",
-           "held_policy", "posts", "rollout", "scene"]
+__all__ = ["ReachObstacles", "ReachObstacles2D", "ReachObstaclesState", "ReachObstaclesParams", "absolute", "cage",
+           "contact_arm", "held_policy", "posts", "ramped_reference", "rollout", "scene"]

@@ -15,7 +15,10 @@ planar task (46,) also observes its last action. Reward per step
 (exp(-k d) + exp(-precision k d)) / 2 minus ``penetration_weight`` x
 min(depth / tolerance, 2), depth the deepest penetration during the step, minus
 ``action_rate_weight`` x the mean squared change of the action (the first
-measured from the rest action, 0): in [-1 - 4 action_rate_weight, 1]. A
+measured from the rest action, 0); the last step's closeness term counts
+1 + ``final_weight`` times: in [-1 - 4 action_rate_weight, 1 + final_weight].
+With ``residual_scale`` > 0 the actions are corrections to the open-loop ramp of
+``reference_action`` (``ramped_reference``), not the tendon actions themselves. A
 non-finite or out-of-bound state ends the episode with ``info["valid"] = False``
 and reward 0.
 """
@@ -102,24 +105,38 @@ def start(key: jax.Array, params: ReachObstaclesParams) -> ReachObstaclesState:
                                step=jnp.zeros((), jnp.int32), last_action=jnp.zeros(4, q.dtype))
 
 
+def ramped_reference(action, cos, sin, k, dt: float, ramp_s: float) -> jax.Array:
+    """(..., 4) the tendon-group ``action`` (given for yaw 0) turned by the scene's yaw (``cos``,
+    ``sin``) at control step ``k`` (from 0) of a linear rise over ``ramp_s`` seconds (0: at once):
+    step k holds (k + 1) dt / ramp_s of it."""
+    a = jnp.asarray(action)
+    groups = [(a[2 * g] * cos - a[2 * g + 1] * sin, a[2 * g] * sin + a[2 * g + 1] * cos) for g in range(len(a) // 2)]
+    full = jnp.clip(jnp.stack([x for pair in groups for x in pair], -1), -1.0, 1.0)
+    if ramp_s > 0:
+        full = full * jnp.clip((k + 1.0) * dt / ramp_s, 0.0, 1.0)[..., None]
+    return full
+
+
 def held_policy(env: ReachObstacles, action=None, ramp_s: float = 0.0, params=None) -> Policy:
     """The open-loop baselines: ``action`` (4,) (default ``env.reference_action``; given for yaw 0)
     turned with the scene, as ``env``'s actions: applied at once and held (``ramp_s`` 0), or raised
-    linearly to it over ``ramp_s`` seconds of ``params``' control steps (default: the task's) and held."""
-    a = jnp.asarray(env.reference_action if action is None else action)
+    linearly to it over ``ramp_s`` seconds of ``params``' control steps (default: the task's) and held.
+    They are tendon actions: run them with ``residual_scale`` 0 (``absolute``)."""
+    a = env.reference_action if action is None else action
     p = params if params is not None else env.default_params()
     steps, dt = p.episode_steps, p.arm.control_dt
 
     def policy(obs):
-        c, s = obs[..., YAW_OBS.start], obs[..., YAW_OBS.start + 1]
-        groups = [(a[2 * g] * c - a[2 * g + 1] * s, a[2 * g] * s + a[2 * g + 1] * c) for g in range(len(a) // 2)]
-        full = jnp.clip(jnp.stack([x for pair in groups for x in pair], -1), -1.0, 1.0)
-        if ramp_s > 0:  # the k-th control step (from 1) holds k dt / ramp_s of the action
-            done = jnp.round((1.0 - obs[..., LEFT_OBS]) * steps)
-            full = full * jnp.clip((done + 1.0) * dt / ramp_s, 0.0, 1.0)[..., None]
+        done = jnp.round((1.0 - obs[..., LEFT_OBS]) * steps)
+        full = ramped_reference(a, obs[..., YAW_OBS.start], obs[..., YAW_OBS.start + 1], done, dt, ramp_s)
         return full[..., ::2] if env.planar else full
 
     return policy
+
+
+def absolute(params: ReachObstaclesParams) -> ReachObstaclesParams:
+    """``params`` whose actions are the tendon groups' own (no residual on the ramp)."""
+    return dataclasses.replace(params, residual_scale=0.0)
 
 
 class ReachObstacles(Environment):
@@ -177,6 +194,8 @@ class ReachObstacles(Environment):
             raise ValueError(f"target_jitter={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
         for name, value, low in (("yaw_range", params.yaw_range, 0.0), ("action_rate_weight",
                                                                        params.action_rate_weight, 0.0),
+                                 ("residual_scale", params.residual_scale, 0.0),
+                                 ("final_weight", params.final_weight, 0.0),
                                  ("tolerance", params.tolerance, 1e-6), ("success_distance", params.success_distance,
                                                                         1e-6)):
             if isinstance(value, (int, float)) and not value >= low:
@@ -206,12 +225,17 @@ class ReachObstacles(Environment):
         action, finite = sanitize_action(action, self.action_size)
         arm = scene(params, state.yaw)
         full = self.full_action(action)
+        if params.residual_scale > 0:
+            prior = ramped_reference(self.reference_action, jnp.cos(state.yaw), jnp.sin(state.yaw), state.step,
+                                     params.arm.control_dt, RAMP_S)
+            full = jnp.clip(prior + params.residual_scale * full, -1.0, 1.0)
         tr = arm3d.control_step(arm, state.q, state.qd, full, save_every=SAVE_EVERY)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         depth = jnp.maximum(-jnp.min(tr.contact_gap), 0.0)
         d = jnp.linalg.norm(tip - state.target)
         valid = finite & arm3d.healthy(arm.robot, q, qd) & jnp.isfinite(d) & jnp.isfinite(depth)
         shaped = 0.5 * (jnp.exp(-params.k * d) + jnp.exp(-params.precision * params.k * d))
+        shaped = shaped * (1.0 + params.final_weight * (state.step + 1 >= self.episode_length))
         rate = jnp.sum((full - state.last_action) ** 2) / self.action_size  # the planar zeros add nothing
         penalty = (params.penetration_weight * jnp.minimum(depth / params.tolerance, 2.0)
                    + params.action_rate_weight * rate)
@@ -235,9 +259,10 @@ class ReachObstacles(Environment):
         self._check(params)
         keys = jax.random.split(jax.random.PRNGKey(seed), n_episodes)
         run = jax.jit(lambda k, pol: rollout(self, params, pol, k), static_argnums=1)
-        pol, held, ramped = ({k: np.asarray(v) for k, v in run(keys, p).items()}
-                             for p in (policy, held_policy(self, params=params),
-                                       held_policy(self, ramp_s=RAMP_S, params=params)))
+        pol = {k: np.asarray(v) for k, v in run(keys, policy).items()}
+        run = jax.jit(lambda k, pol: rollout(self, absolute(params), pol, k), static_argnums=1)
+        held, ramped = ({k: np.asarray(v) for k, v in run(keys, p).items()}
+                        for p in (held_policy(self, params=params), held_policy(self, ramp_s=RAMP_S, params=params)))
         metrics = {"n_episodes": int(n_episodes), "valid_fraction": float(np.mean(pol["valid"][:, -1])),
                    "policy": final_summary(pol, params), "held_action": final_summary(held, params),
                    "ramped_action": final_summary(ramped, params)}
@@ -272,7 +297,7 @@ class ReachObstacles(Environment):
     def animate(self, path: Path, policy: Policy | None = None, **keys: Any) -> Path:
         """A GIF of the episode of ``seed`` under ``policy`` (default: the held reference action)."""
         k = {**self.animation_keys, **keys}
-        params = self.default_params()
+        params = self.default_params() if policy is not None else absolute(self.default_params())
         out = jax.jit(lambda key: rollout(self, params, policy or held_policy(self),
                                           key[None]))(jax.random.PRNGKey(int(k["seed"])))
         robot = scene(params, out["yaw"][0]).robot

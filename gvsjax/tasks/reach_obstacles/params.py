@@ -47,5 +47,13 @@ class ReachObstaclesParams:
     # minus action_rate_weight x mean((a - a_before)^2) over the task's actions: damps a control-rate
     # chatter (a bang-bang limit cycle around the target) and a sudden start (a swing into the bars)
     action_rate_weight: float = 0.0
+    # the last step's closeness term counts (1 + final_weight) times: success is judged at the end, and
+    # the per-step terms alone pay a fast approach that ends farther off
+    final_weight: float = 0.0
+    # 0: the policy's actions are the tendon groups' actions. > 0: they are corrections, times this, to
+    # the open-loop ramp of the task's reference action (``env.RAMP_S`` rise, turned with the scene),
+    # the sum clipped to [-1, 1]: residual policy learning (Silver et al. 2018), started from a
+    # baseline that already passes the bars
+    residual_scale: float = struct.field(pytree_node=False, default=0.0)
     success_distance: float = 0.05  # m
     episode_steps: int = struct.field(pytree_node=False, default=30)  # control steps (3 s)
