@@ -2,7 +2,8 @@
 
     python experiments/train_variant.py task=reach_obstacles residual_scale=1 final_weight=10 -- out=runs/v
 
-Every ``name=value`` before ``--`` replaces a numeric field of the task's ``default_params()``;
+Every ``name=value`` before ``--`` replaces a numeric field of the task's ``default_params()``
+(``name=x,y,z`` a tuple of numbers);
 what follows ``--`` goes to ``python -m gvsjax.train`` unchanged. The variant is registered in this
 process as ``<task>_variant``, so the training's own final evaluation (``eval_targets``) runs on the
 variant's params; ``python -m gvsjax.evaluate`` in another process does not know the variant and
@@ -35,13 +36,18 @@ def variant(task: str, overrides: dict[str, float]) -> str:
     return name
 
 
+def parse(value: str) -> float | tuple[float, ...]:
+    """A number, or numbers separated by commas (a tuple field such as ``layout_jitter=0.05,0.05,0.05``)."""
+    return tuple(float(x) for x in value.split(",")) if "," in value else float(value)
+
+
 def main(argv: list[str]) -> int:
     split = argv.index("--") if "--" in argv else len(argv)
     pairs = dict(a.split("=", 1) for a in argv[:split])
     if "task" not in pairs:
         raise SystemExit(__doc__)
     task = pairs.pop("task")
-    name = variant(task, {k: float(v) for k, v in pairs.items()})
+    name = variant(task, {k: parse(v) for k, v in pairs.items()})
     return gvsjax.train.main([f"task={name}", *argv[split + 1:]])
 
 

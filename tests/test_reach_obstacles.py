@@ -241,7 +241,8 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
     """With ``residual_scale`` s the applied tendon action is clip(ramp + s x action), the ramp (the
     reference action turned by the drawn yaw, (k + 1) dt / 1.5 s of it at step k) by hand: zero
     actions apply the ramp baseline's; with ``final_weight`` w the reward's closeness term counts
-    1 + w times at the last step only; under jit and vmap."""
+    1 + w times at the last step only; with ``residual_rise`` 1 the corrections rise with the ramp;
+    under jit and vmap."""
     env = make("reach_obstacles")
     res = dataclasses.replace(env.default_params(), yaw_range=math.pi, residual_scale=0.5, final_weight=4.0)
     keys = jax.random.split(jax.random.PRNGKey(4), 2)
@@ -263,9 +264,17 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
             np.testing.assert_allclose(np.asarray(ro.held_policy(env, ramp_s=1.5)(obs[1:])),
                                        np.asarray(state.last_action)[1:] * 4 / 3, atol=1e-12)
     assert np.all(np.asarray(done)) and np.all(np.asarray(info["valid"]))
-    for name in ("residual_scale", "final_weight"):
+    # residual_rise 1: the corrections rise with the ramp too (the same compiled step: a traced param)
+    rising = dataclasses.replace(res, residual_rise=1.0)
+    state = jax.jit(jax.vmap(env.reset, (0, None)))(keys, rising)[1]
+    for k in range(3):
+        state = step(keys, state, jnp.asarray(correction), rising)[1]
+        np.testing.assert_allclose(np.asarray(state.last_action),
+                                   np.clip((k + 1) / 15 * (turned + 0.5 * correction), -1, 1), atol=1e-12)
+    for name, bad in (("residual_scale", -1.0), ("final_weight", -1.0), ("residual_rise", -0.1),
+                      ("residual_rise", 1.5)):
         with pytest.raises(ValueError, match=name):
-            env.reset(keys[0], dataclasses.replace(res, **{name: -1.0}))
+            env.reset(keys[0], dataclasses.replace(res, **{name: bad}))
 
 
 def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
@@ -286,5 +295,36 @@ def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
     got = env.default_params()
     assert (got.residual_scale, got.final_weight) == (1.0, 10.0) and env.obs_size == 46
     assert (got.action_rate_weight, got.k, got.target_jitter) == (base.action_rate_weight, base.k, base.target_jitter)
+    assert module.parse("0.05,0,0.02") == (0.05, 0.0, 0.02) and module.parse("3") == 3.0
     with pytest.raises(SystemExit, match="final_weight"):
         module.variant("reach_obstacles", {"finalweight": 1.0})
+
+
+def test_random_layouts_move_each_capsule_and_the_gaps_follow(env, params):
+    """``layout_jitter``: each capsule of each episode moves by its own draw within the jitter (before
+    the scene's turn), the yaw and target draws unchanged; the rest arm's gaps (each sample's 10 cm
+    piece of the straight arm) against distances to the moved, turned capsules by hand; under jit
+    and vmap."""
+    moved = dataclasses.replace(params, yaw_range=math.pi, layout_jitter=(0.05, 0.02, 0.05))
+    keys = jax.random.split(jax.random.PRNGKey(7), 3)
+    reset = jax.jit(jax.vmap(env.reset, (0, None)))
+    state = reset(keys, moved)[1]
+    still = reset(keys, dataclasses.replace(moved, layout_jitter=(0.0, 0.0, 0.0)))[1]
+    shift = np.asarray(state.shift)
+    assert shift.shape == (3, 12, 3) and np.all(np.abs(shift) <= np.array([0.05, 0.02, 0.05]))
+    assert np.ptp(shift[:, :, 0]) > 0.05 and np.ptp(shift[0, :, 0]) > 0.03 and not np.any(np.asarray(still.shift))
+    np.testing.assert_array_equal(np.asarray(state.yaw), np.asarray(still.yaw))
+    np.testing.assert_array_equal(np.asarray(state.target), np.asarray(still.target))
+    # each sample's piece of the straight rest arm: 5 cm either way (2.5 cm at the ends), finely sampled
+    z = np.linspace(0.0, 1.0, 2001)
+    pieces = [np.stack([0 * z, 0 * z, z], -1)[np.abs(z - zc) <= 0.05 + 1e-12] for zc in np.linspace(0.0, 1.0, 11)]
+    rod = params.arm.robot.links[0].radius
+    for i in range(3):
+        c, s = np.cos(float(state.yaw[i])), np.sin(float(state.yaw[i]))
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        a, b = (np.asarray(params.start) + shift[i]) @ R.T, (np.asarray(params.end) + shift[i]) @ R.T
+        want = [min(_segment_distance(p, a[j], b[j]).min() - np.asarray(params.radius)[j] for j in range(12))
+                for p in pieces]
+        np.testing.assert_allclose(np.asarray(state.gap[i]), np.array(want) - rod, atol=1e-6)
+    with pytest.raises(ValueError, match="layout_jitter"):
+        env.reset(keys[0], dataclasses.replace(params, layout_jitter=(0.05, -0.01, 0.0)))

@@ -18,7 +18,8 @@ min(depth / tolerance, 2), depth the deepest penetration during the step, minus
 measured from the rest action, 0); the last step's closeness term counts
 1 + ``final_weight`` times: in [-1 - 4 action_rate_weight, 1 + final_weight].
 With ``residual_scale`` > 0 the actions are corrections to the open-loop ramp of
-``reference_action`` (``ramped_reference``), not the tendon actions themselves. A
+``reference_action`` (``ramped_reference``), not the tendon actions themselves
+(``residual_rise`` 1: the corrections rise with the ramp too). A
 non-finite or out-of-bound state ends the episode with ``info["valid"] = False``
 and reward 0.
 """
@@ -60,24 +61,26 @@ class ReachObstaclesState:
     tip_velocity: jax.Array  # (3,) m/s
     target: jax.Array  # (3,) m
     yaw: jax.Array  # () rad, the scene's turn about the base
+    shift: jax.Array  # (m, 3) m, each capsule's move from its place in the layout (before the turn)
     gap: jax.Array  # (n_c,) m, each contact sample's gap at the last control step
     deepest: jax.Array  # () m, the deepest penetration so far (>= 0)
     step: jax.Array  # () int32
     last_action: jax.Array  # (4,) the tendon groups' last action (0 at rest)
 
 
-def scene(params: ReachObstaclesParams, yaw) -> arm3d.ArmParams:
-    """The arm with the layout turned by ``yaw`` as its obstacles."""
+def scene(params: ReachObstaclesParams, yaw, shift=0.0) -> arm3d.ArmParams:
+    """The arm with the layout, each capsule moved by ``shift`` ((m, 3) m) and then all turned by
+    ``yaw``, as its obstacles."""
     robot = params.arm.robot
-    obstacles = capsules(turn(jnp.asarray(params.start), yaw), turn(jnp.asarray(params.end), yaw),
+    obstacles = capsules(turn(jnp.asarray(params.start) + shift, yaw), turn(jnp.asarray(params.end) + shift, yaw),
                          jnp.asarray(params.radius))
     contact = dataclasses.replace(robot.contact, obstacles=obstacles)
     return dataclasses.replace(params.arm, robot=dataclasses.replace(robot, contact=contact))
 
 
-def gaps(params: ReachObstaclesParams, yaw, q, qd) -> jax.Array:
-    """(n_c,) the smallest gap (m) of each contact sample to the turned layout."""
-    return report(scene(params, yaw).robot, q, qd, 0.0)[1]
+def gaps(params: ReachObstaclesParams, yaw, q, qd, shift=0.0) -> jax.Array:
+    """(n_c,) the smallest gap (m) of each contact sample to the moved and turned layout."""
+    return report(scene(params, yaw, shift).robot, q, qd, 0.0)[1]
 
 
 def observe(state: ReachObstaclesState, params: ReachObstaclesParams, last_action: bool = False) -> jax.Array:
@@ -93,15 +96,19 @@ def observe(state: ReachObstaclesState, params: ReachObstaclesParams, last_actio
 
 
 def start(key: jax.Array, params: ReachObstaclesParams) -> ReachObstaclesState:
-    """The straight arm at rest, the scene turned by a drawn yaw, the target drawn near its place."""
+    """The straight arm at rest, the scene turned by a drawn yaw, the target and the capsules drawn
+    near their places."""
     robot = params.arm.robot
     k_yaw, k_target = jax.random.split(key)
+    k_layout = jax.random.fold_in(key, 1)  # apart from the split: the yaw and target draws stay as they were
     yaw = params.yaw_range * jax.random.uniform(k_yaw, (), minval=-1.0, maxval=1.0)
     jitter = jnp.asarray(params.target_jitter) * jax.random.uniform(k_target, (3,), minval=-1.0, maxval=1.0)
     target = turn(jnp.asarray(params.target) + jitter, yaw)
+    shift = jnp.asarray(params.layout_jitter) * jax.random.uniform(k_layout, jnp.shape(params.start), minval=-1.0,
+                                                                   maxval=1.0)
     q, qd = arm3d.rest(robot)
     return ReachObstaclesState(q=q, qd=qd, tip=tip_frame(robot, q)[1], tip_velocity=jnp.zeros(3), target=target,
-                               yaw=yaw, gap=gaps(params, yaw, q, qd), deepest=jnp.zeros(()),
+                               yaw=yaw, shift=shift, gap=gaps(params, yaw, q, qd, shift), deepest=jnp.zeros(()),
                                step=jnp.zeros((), jnp.int32), last_action=jnp.zeros(4, q.dtype))
 
 
@@ -112,9 +119,12 @@ def ramped_reference(action, cos, sin, k, dt: float, ramp_s: float) -> jax.Array
     a = jnp.asarray(action)
     groups = [(a[2 * g] * cos - a[2 * g + 1] * sin, a[2 * g] * sin + a[2 * g + 1] * cos) for g in range(len(a) // 2)]
     full = jnp.clip(jnp.stack([x for pair in groups for x in pair], -1), -1.0, 1.0)
-    if ramp_s > 0:
-        full = full * jnp.clip((k + 1.0) * dt / ramp_s, 0.0, 1.0)[..., None]
-    return full
+    return full * rise(k, dt, ramp_s)[..., None] if ramp_s > 0 else full
+
+
+def rise(k, dt: float, ramp_s: float) -> jax.Array:
+    """The ramp's fraction at control step ``k`` (from 0) of a linear rise over ``ramp_s`` > 0 seconds."""
+    return jnp.clip((jnp.asarray(k) + 1.0) * dt / ramp_s, 0.0, 1.0)
 
 
 def held_policy(env: ReachObstacles, action=None, ramp_s: float = 0.0, params=None) -> Policy:
@@ -189,17 +199,21 @@ class ReachObstacles(Environment):
         shapes = tuple(np.shape(x) for x in (params.start, params.end, params.radius))
         if len(shapes[0]) != 2 or shapes[0][1] != 3 or shapes[1] != shapes[0] or shapes[2] != shapes[0][:1]:
             raise ValueError(f"the layout's start, end and radius must be (m, 3), (m, 3) and (m,); got {shapes}")
-        jitter = params.target_jitter
-        if concrete(jitter) and not (np.shape(jitter) == (3,) and np.all(np.asarray(jitter, float) >= 0)):
-            raise ValueError(f"target_jitter={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
+        for name in ("target_jitter", "layout_jitter"):
+            jitter = getattr(params, name)
+            if concrete(jitter) and not (np.shape(jitter) == (3,) and np.all(np.asarray(jitter, float) >= 0)):
+                raise ValueError(f"{name}={jitter!r} is invalid for {self.name}; expected three numbers >= 0 (m)")
         for name, value, low in (("yaw_range", params.yaw_range, 0.0), ("action_rate_weight",
                                                                        params.action_rate_weight, 0.0),
                                  ("residual_scale", params.residual_scale, 0.0),
                                  ("final_weight", params.final_weight, 0.0),
+                                 ("residual_rise", params.residual_rise, 0.0),
                                  ("tolerance", params.tolerance, 1e-6), ("success_distance", params.success_distance,
                                                                         1e-6)):
             if isinstance(value, (int, float)) and not value >= low:
                 raise ValueError(f"{name}={value!r} is invalid for {self.name}; expected >= {low}")
+        if isinstance(params.residual_rise, (int, float)) and not params.residual_rise <= 1.0:
+            raise ValueError(f"residual_rise={params.residual_rise!r} is invalid for {self.name}; expected in [0, 1]")
 
     def with_sim_dtype(self, params: ReachObstaclesParams, sim_dtype: str) -> ReachObstaclesParams:
         return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))
@@ -223,12 +237,14 @@ class ReachObstacles(Environment):
         """One control step (tensions held for ``control_dt``): ``(obs, state, reward, done, info)``."""
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
-        arm = scene(params, state.yaw)
+        arm = scene(params, state.yaw, state.shift)
         full = self.full_action(action)
         if params.residual_scale > 0:
-            prior = ramped_reference(self.reference_action, jnp.cos(state.yaw), jnp.sin(state.yaw), state.step,
-                                     params.arm.control_dt, RAMP_S)
-            full = jnp.clip(prior + params.residual_scale * full, -1.0, 1.0)
+            turned = ramped_reference(self.reference_action, jnp.cos(state.yaw), jnp.sin(state.yaw), state.step,
+                                      params.arm.control_dt, 0.0)
+            r = rise(state.step, params.arm.control_dt, RAMP_S)
+            gain = params.residual_scale * (1.0 - params.residual_rise + params.residual_rise * r)
+            full = jnp.clip(r * turned + gain * full, -1.0, 1.0)
         tr = arm3d.control_step(arm, state.q, state.qd, full, save_every=SAVE_EVERY)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         depth = jnp.maximum(-jnp.min(tr.contact_gap), 0.0)
@@ -286,13 +302,14 @@ class ReachObstacles(Environment):
         return f"eval on {metrics['n_episodes']} episodes: " + "; ".join(parts)
 
     def figures(self, params: ReachObstaclesParams, result: EvalResult, out: Path) -> list[Path]:
-        yaws = result.extra["policy"]["yaw"][:3]
-        return figures.evaluation_figures(params, result.extra, out, [scene(params, y).robot for y in yaws])
+        pol = result.extra["policy"]
+        robots = [scene(params, y, s).robot for y, s in zip(pol["yaw"][:3], pol["shift"][:3])]
+        return figures.evaluation_figures(params, result.extra, out, robots)
 
     # ------------------------------------------------------------------ drawing
 
     def render(self, params: ReachObstaclesParams, state: ReachObstaclesState, last_action) -> np.ndarray:
-        return figures.render(scene(params, state.yaw).robot, state.q, state.target)
+        return figures.render(scene(params, state.yaw, state.shift).robot, state.q, state.target)
 
     def animate(self, path: Path, policy: Policy | None = None, **keys: Any) -> Path:
         """A GIF of the episode of ``seed`` under ``policy`` (default: the held reference action)."""
@@ -300,7 +317,7 @@ class ReachObstacles(Environment):
         params = self.default_params() if policy is not None else absolute(self.default_params())
         out = jax.jit(lambda key: rollout(self, params, policy or held_policy(self),
                                           key[None]))(jax.random.PRNGKey(int(k["seed"])))
-        robot = scene(params, out["yaw"][0]).robot
+        robot = scene(params, out["yaw"][0], out["shift"][0]).robot
         return figures.episode_gif(path, robot, np.asarray(out["q"][0]), np.asarray(out["target"][0]),
                                    np.asarray(out["distance"][0]), np.asarray(out["depth"][0]),
                                    params.arm.control_dt, fps=int(k["fps"]), dpi=int(k["dpi"]))
@@ -332,11 +349,12 @@ def final_summary(out: dict, params: ReachObstaclesParams) -> dict[str, float]:
 def rollout(env: ReachObstacles, params: ReachObstaclesParams, policy: Policy, keys: jax.Array) -> dict:
     """Episodes from ``reset(keys[i])`` under ``policy``; jittable. Returns numpy arrays: per step
     (n, T) ``distance`` (m), ``depth`` (m, the step's deepest penetration), ``valid`` (so far); per
-    episode ``target`` (n, 3) and ``yaw`` (n,); ``q`` (n, T + 1, n_dofs), the first the rest state."""
+    episode ``target`` (n, 3), ``yaw`` (n,) and ``shift`` (n, m, 3); ``q`` (n, T + 1, n_dofs), the
+    first the rest state."""
     first, rec = record_episodes(env, params, policy, keys,
                                  lambda s, info: {"distance": info["distance"], "depth": info["depth"], "q": s.q})
     rec["q"] = jnp.concatenate([first.q[:, None], rec["q"]], 1)
-    return {**rec, "target": first.target, "yaw": first.yaw}
+    return {**rec, "target": first.target, "yaw": first.yaw, "shift": first.shift}
 
 
 class ReachObstacles2D(ReachObstacles):

@@ -27,7 +27,8 @@ class ReachObstaclesParams:
     The layout (``start``, ``end``, ``radius``: capsules) and ``target`` are given for
     yaw 0; each episode draws the scene's yaw uniformly in [-yaw_range, yaw_range]
     (0: the fixed layout) and the target uniformly within ``target_jitter`` of its
-    place in each coordinate (the obstacles stay).
+    place in each coordinate; each capsule moves within ``layout_jitter`` of its place in each
+    coordinate (0: the obstacles stay).
     """
 
     arm: ArmParams = struct.field(default_factory=_arm)
@@ -36,6 +37,9 @@ class ReachObstaclesParams:
     radius: Any = struct.field(default_factory=lambda: _cage()["radius"])  # (m,) m
     target: Any = CAGE_TARGET  # (3,) m, at yaw 0
     target_jitter: Any = (0.03, 0.03, 0.03)  # m, per coordinate
+    # m, per coordinate: each capsule moves by its own uniform draw within this (random layouts; the
+    # policy senses them through its contact samples' gaps)
+    layout_jitter: Any = (0.0, 0.0, 0.0)
     yaw_range: float = 0.0  # rad; pi: a scene turned anywhere about the base
     # reward per step: (exp(-k d) + exp(-precision k d)) / 2 - penetration_weight x min(depth / tolerance, 2)
     # the first term pulls from a metre away (0.25 at 70 cm), the second rewards the last centimetres
@@ -55,5 +59,10 @@ class ReachObstaclesParams:
     # the sum clipped to [-1, 1]: residual policy learning (Silver et al. 2018), started from a
     # baseline that already passes the bars
     residual_scale: float = struct.field(pytree_node=False, default=0.0)
+    # with residual_scale > 0, in [0, 1]: how much the corrections rise with the ramp; 1: the applied
+    # action is clip(ramp fraction x (reference + residual_scale x action)), so no action rises much
+    # faster than the baseline that passes the bars (the policy chooses where the arm goes, the ramp
+    # how fast); 0: the corrections apply at once
+    residual_rise: float = 0.0
     success_distance: float = 0.05  # m
     episode_steps: int = struct.field(pytree_node=False, default=30)  # control steps (3 s)
