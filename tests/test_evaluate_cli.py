@@ -38,6 +38,7 @@ def run_dir(tmp_path_factory):
     return out
 
 
+@pytest.mark.extended
 def test_run_folder_is_evaluated_into_itself(run_dir, capsys, monkeypatch):
     figures = capture_figures(monkeypatch)
     assert evaluate.main([f"checkpoint={run_dir}", "n_targets=4", "seed=7"]) == 0

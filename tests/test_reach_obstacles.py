@@ -236,7 +236,27 @@ def test_ramped_baseline_raises_the_turned_reference_action_over_its_rise():
     np.testing.assert_allclose(got3, 0.2 * np.array([0.0, 0.5, 0.0, 0.9]), atol=1e-12)
 
 
-@pytest.mark.slow
+def test_applied_action_is_the_policys_or_its_correction_to_the_turned_ramp():
+    """``applied`` by hand: the policy's action itself with ``residual_scale`` 0; with s > 0 the
+    reference turned by the yaw, (k + 1) dt / 1.5 s of it at step k, plus s x the correction, or
+    with ``residual_rise`` 1 the sum ramped as a whole; clipped to [-1, 1]; under jit and vmap."""
+    env, p = make("reach_obstacles"), make("reach_obstacles").default_params()
+    rng = np.random.default_rng(0)
+    full, yaw, k = rng.uniform(-1, 1, (40, 4)), rng.uniform(-math.pi, math.pi, 40), np.arange(40) % 30
+    ref, c, s = np.array(env.reference_action), np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    turned = np.concatenate([ref[0] * c - ref[1] * s, ref[0] * s + ref[1] * c, ref[2] * c - ref[3] * s,
+                             ref[2] * s + ref[3] * c], -1)
+    f = np.minimum((k + 1) * 0.1 / 1.5, 1.0)[:, None]
+    for scale, w, want in ((0.0, 0.0, full), (0.5, 0.0, np.clip(f * turned + 0.5 * full, -1, 1)),
+                           (0.5, 1.0, np.clip(f * (turned + 0.5 * full), -1, 1))):
+        q = dataclasses.replace(p, residual_scale=scale, residual_rise=w)
+        got = jax.jit(jax.vmap(lambda a, y, i, q=q: ro.applied(a, env.reference_action, y, i, q)))(
+            jnp.asarray(full), jnp.asarray(yaw), jnp.asarray(k))
+        np.testing.assert_allclose(np.asarray(got), want, atol=1e-12)
+    assert np.abs(want).max() == 1.0 and np.ptp(want) > 1.0  # some clipped, the rest spread
+
+
+@pytest.mark.extended
 def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
     """With ``residual_scale`` s the applied tendon action is clip(ramp + s x action), the ramp (the
     reference action turned by the drawn yaw, (k + 1) dt / 1.5 s of it at step k) by hand: zero

@@ -11,6 +11,7 @@ from gvsjax.tasks.reach_obstacles.env import (
     ReachObstacles2D,
     ReachObstaclesState,
     absolute,
+    applied,
     held_policy,
     ramped_reference,
     rollout,
@@ -19,5 +20,6 @@ from gvsjax.tasks.reach_obstacles.env import (
 from gvsjax.tasks.reach_obstacles.layouts import cage, contact_arm, posts
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
 
-__all__ = ["ReachObstacles", "ReachObstacles2D", "ReachObstaclesState", "ReachObstaclesParams", "absolute", "cage",
+__all__ = ["ReachObstacles", "ReachObstacles2D", "ReachObstaclesState", "ReachObstaclesParams", "absolute", "applied",
+           "cage",
            "contact_arm", "held_policy", "posts", "ramped_reference", "rollout", "scene"]

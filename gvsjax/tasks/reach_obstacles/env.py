@@ -127,6 +127,19 @@ def rise(k, dt: float, ramp_s: float) -> jax.Array:
     return jnp.clip((jnp.asarray(k) + 1.0) * dt / ramp_s, 0.0, 1.0)
 
 
+def applied(full, reference, yaw, k, params: ReachObstaclesParams) -> jax.Array:
+    """(..., 4) the tendon-group action applied at control step ``k`` for the policy's ``full``
+    (its four groups' actions): ``full`` itself, or with ``residual_scale`` s > 0 the correction
+    clip(f turned + s (1 - w + w f) full, -1, 1) to the ramp of ``reference`` turned by ``yaw``,
+    f the ramp's fraction and w ``residual_rise``."""
+    if params.residual_scale == 0:
+        return full
+    dt = params.arm.control_dt
+    r = rise(k, dt, RAMP_S)[..., None]
+    gain = params.residual_scale * (1.0 - params.residual_rise + params.residual_rise * r)
+    return jnp.clip(r * ramped_reference(reference, jnp.cos(yaw), jnp.sin(yaw), k, dt, 0.0) + gain * full, -1.0, 1.0)
+
+
 def held_policy(env: ReachObstacles, action=None, ramp_s: float = 0.0, params=None) -> Policy:
     """The open-loop baselines: ``action`` (4,) (default ``env.reference_action``; given for yaw 0)
     turned with the scene, as ``env``'s actions: applied at once and held (``ramp_s`` 0), or raised
@@ -238,13 +251,7 @@ class ReachObstacles(Environment):
         self._check(params)
         action, finite = sanitize_action(action, self.action_size)
         arm = scene(params, state.yaw, state.shift)
-        full = self.full_action(action)
-        if params.residual_scale > 0:
-            turned = ramped_reference(self.reference_action, jnp.cos(state.yaw), jnp.sin(state.yaw), state.step,
-                                      params.arm.control_dt, 0.0)
-            r = rise(state.step, params.arm.control_dt, RAMP_S)
-            gain = params.residual_scale * (1.0 - params.residual_rise + params.residual_rise * r)
-            full = jnp.clip(r * turned + gain * full, -1.0, 1.0)
+        full = applied(self.full_action(action), self.reference_action, state.yaw, state.step, params)
         tr = arm3d.control_step(arm, state.q, state.qd, full, save_every=SAVE_EVERY)[0]
         q, qd, tip, tip_velocity = tr.q[-1], tr.qd[-1], tr.tip[-1], tr.tip_velocity[-1]
         depth = jnp.maximum(-jnp.min(tr.contact_gap), 0.0)
