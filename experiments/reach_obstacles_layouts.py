@@ -12,7 +12,8 @@ own ``evaluate`` (its policy row and its ramp baseline's).
 A run trained by ``experiments/train_variant.py`` needs the same ``name=value`` replacements (they
 register its ``<task>_variant``). Options: ``jitter=`` (m, comma-separated; default 0,0.02,0.04,0.06),
 ``n=`` episodes (1000), ``seed=`` (the evaluation's, 1000003), ``out=`` (a JSON file; default
-``<checkpoint folder>/layouts.json``). ~1-2 min per jitter and 1000 episodes on 2 cores.
+``<checkpoint folder>/layouts.json``; each jitter's evaluation figures go to ``layouts_<j>cm/`` beside it).
+~5-10 min per jitter and 1000 episodes on 2 cores.
 """
 
 from __future__ import annotations
@@ -38,8 +39,12 @@ def main(argv: list[str]) -> int:
     jitters = [float(j) for j in pairs.pop("jitter", "0,0.02,0.04,0.06").split(",")]
     n, seed = int(pairs.pop("n", 1000)), int(pairs.pop("seed", 1_000_003))
     out = Path(pairs.pop("out", path.parent / "layouts.json"))
+    task = load_raw(path)["task"]
     if pairs:  # a variant's replacements: register it under the name its checkpoint carries
-        variant(load_raw(path)["task"].removesuffix("_variant"), {k: parse(v) for k, v in pairs.items()})
+        if not task.endswith("_variant"):
+            raise SystemExit(f"{sorted(pairs)}: checkpoint {str(path)!r} is a {task} run, trained with its default "
+                             "params; replacements apply to runs of experiments/train_variant.py only")
+        variant(task.removesuffix("_variant"), {k: parse(v) for k, v in pairs.items()})
     config, env, params, net = load_policy(path)
     if not hasattr(env, "reference_action"):
         raise SystemExit(f"checkpoint {str(path)!r} is a {env.name} run, not reach_obstacles'")
@@ -47,7 +52,11 @@ def main(argv: list[str]) -> int:
     rows = []
     for j in jitters:
         moved = dataclasses.replace(params, layout_jitter=(j, 0.0 if env.planar else j, j))
-        m = env.evaluate(moved, policy, n, seed).metrics
+        result = env.evaluate(moved, policy, n, seed)
+        m = result.metrics
+        folder = out.parent / f"layouts_{100 * j:g}cm"  # the evaluation's figures, the moved bars drawn
+        folder.mkdir(parents=True, exist_ok=True)
+        env.figures(moved, result, folder)
         rows.append({"jitter_m": j, **{k: m[k] for k in ("policy", "ramped_action", "held_action")}})
         p, r = m["policy"], m["ramped_action"]
         print(f"jitter {100 * j:.0f} cm: policy success {100 * p['success']:.1f}% (penetration > 1 cm "

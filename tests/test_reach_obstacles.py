@@ -256,7 +256,7 @@ def test_applied_action_is_the_policys_or_its_correction_to_the_turned_ramp():
     assert np.abs(want).max() == 1.0 and np.ptp(want) > 1.0  # some clipped, the rest spread
 
 
-@pytest.mark.extended
+@pytest.mark.slow
 def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
     """With ``residual_scale`` s the applied tendon action is clip(ramp + s x action), the ramp (the
     reference action turned by the drawn yaw, (k + 1) dt / 1.5 s of it at step k) by hand: zero
