@@ -335,7 +335,7 @@ def test_random_layouts_move_each_capsule_and_the_gaps_follow(env, params):
     assert np.ptp(shift[:, :, 0]) > 0.05 and np.ptp(shift[0, :, 0]) > 0.03 and not np.any(np.asarray(still.shift))
     np.testing.assert_array_equal(np.asarray(state.yaw), np.asarray(still.yaw))
     np.testing.assert_array_equal(np.asarray(state.target), np.asarray(still.target))
-    # each sample's piece of the straight rest arm: 5 cm either way (2.5 cm at the ends), finely sampled
+    # each sample's piece of the straight rest arm: 5 cm either way (one way only at the ends), finely sampled
     z = np.linspace(0.0, 1.0, 2001)
     pieces = [np.stack([0 * z, 0 * z, z], -1)[np.abs(z - zc) <= 0.05 + 1e-12] for zc in np.linspace(0.0, 1.0, 11)]
     rod = params.arm.robot.links[0].radius
