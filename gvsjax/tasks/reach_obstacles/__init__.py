@@ -21,5 +21,4 @@ from gvsjax.tasks.reach_obstacles.layouts import cage, contact_arm, posts
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
 
 __all__ = ["ReachObstacles", "ReachObstacles2D", "ReachObstaclesState", "ReachObstaclesParams", "absolute", "applied",
-           "cage",
-           "contact_arm", "held_policy", "posts", "ramped_reference", "rollout", "scene"]
+           "cage", "contact_arm", "held_policy", "posts", "ramped_reference", "rollout", "scene"]
