@@ -20,10 +20,12 @@ REFERENCE = Path(__file__).parent / "data" / "reach_obstacles_episode.npz"
 
 
 def episode() -> dict[str, np.ndarray]:
-    """30 control steps of the held reference action from reset key 0, float64, the scene
-    turned by 0.3 rad (traced obstacles, as in training)."""
+    """30 control steps of the held reference action (absolute tendon actions, the reward without a
+    final weight) from reset key 0, float64, the scene turned by 0.3 rad (traced obstacles, as in
+    training)."""
     env = make("reach_obstacles")
-    params = dataclasses.replace(env.default_params(), yaw_range=0.3)
+    params = dataclasses.replace(env.default_params(), yaw_range=0.3, residual_scale=0.0, residual_rise=0.0,
+                                 final_weight=0.0)
     policy = held_policy(env)
 
     @jax.jit

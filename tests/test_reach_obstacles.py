@@ -66,8 +66,9 @@ def test_turn_is_a_rotation_about_the_vertical():
 def _held_episode(env, params, n_steps, action=None, ramp_steps=0):
     """Three episodes under ``action`` (default: the reference action) raised linearly over
     ``ramp_steps`` then held: the fixed scene, the scene turned by 90 deg, and the fixed scene with
-    a NaN first action. Returns the last (obs, state, reward, info) and the first step's info and
-    reward."""
+    a NaN first action, all as tendon actions (``absolute``). Returns the last (obs, state, reward,
+    info) and the first step's info and reward."""
+    params = ro.absolute(params)
     keys = jax.random.split(jax.random.PRNGKey(0), 3)
     _, state = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     yaw = jnp.array([0.0, math.pi / 2, 0.0])
@@ -264,15 +265,16 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
     1 + w times at the last step only; with ``residual_rise`` 1 the corrections rise with the ramp;
     under jit and vmap."""
     env = make("reach_obstacles")
-    res = dataclasses.replace(env.default_params(), yaw_range=math.pi, residual_scale=0.5, final_weight=4.0)
-    keys = jax.random.split(jax.random.PRNGKey(4), 2)
+    res = dataclasses.replace(env.default_params(), yaw_range=math.pi, residual_scale=0.5, residual_rise=0.0,
+                              final_weight=4.0)
+    keys = jax.random.split(jax.random.PRNGKey(4), 3)  # the scene test's batch: the same step program
     state = jax.jit(jax.vmap(env.reset, (0, None)))(keys, res)[1]
     step = jax.jit(jax.vmap(env.step, (0, 0, 0, None)))
     ref, c, s = np.array(env.reference_action), np.cos(np.asarray(state.yaw)), np.sin(np.asarray(state.yaw))
     turned = np.stack([ref[0] * c - ref[1] * s, ref[0] * s + ref[1] * c, ref[2] * c - ref[3] * s,
                        ref[2] * s + ref[3] * c], -1)
     assert np.ptp(np.asarray(state.yaw)) > 0.1
-    correction = np.array([[0.9, -0.4, 0.8, 0.1], [0.0, 0.0, 0.0, 0.0]])
+    correction = np.array([[0.9, -0.4, 0.8, 0.1], [0.0, 0.0, 0.0, 0.0], [-1.0, 1.0, -0.6, 0.3]])
     for k in range(30):
         obs, state, reward, done, info = step(keys, state, jnp.asarray(correction), res)
         prior = turned * min((k + 1) * 0.1 / 1.5, 1.0)
@@ -281,8 +283,8 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
         shaped = 0.5 * (np.exp(-2 * d) + np.exp(-20 * d)) * (5.0 if k == 29 else 1.0)
         np.testing.assert_allclose(np.asarray(reward), shaped - 0.5 * np.minimum(depth / 0.01, 2), rtol=1e-10)
         if k == 2:  # the ramp baseline's next action, at step 3 of 15
-            np.testing.assert_allclose(np.asarray(ro.held_policy(env, ramp_s=1.5)(obs[1:])),
-                                       np.asarray(state.last_action)[1:] * 4 / 3, atol=1e-12)
+            np.testing.assert_allclose(np.asarray(ro.held_policy(env, ramp_s=1.5)(obs[1])),
+                                       np.asarray(state.last_action)[1] * 4 / 3, atol=1e-12)
     assert np.all(np.asarray(done)) and np.all(np.asarray(info["valid"]))
     # residual_rise 1: the corrections rise with the ramp too (the same compiled step: a traced param)
     rising = dataclasses.replace(res, residual_rise=1.0)

@@ -58,7 +58,7 @@ class ReachObstaclesParams:
     # the open-loop ramp of the task's reference action (``env.RAMP_S`` rise, turned with the scene),
     # the sum clipped to [-1, 1]: residual policy learning (Silver et al. 2018), started from a
     # baseline that already passes the bars
-    residual_scale: float = struct.field(pytree_node=False, default=0.0)
+    residual_scale: float = 0.0
     # with residual_scale > 0, in [0, 1]: how much the corrections rise with the ramp; 1: the applied
     # action is clip(ramp fraction x (reference + residual_scale x action)), so no action rises much
     # faster than the baseline that passes the bars (the policy chooses where the arm goes, the ramp
