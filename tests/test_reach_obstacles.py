@@ -241,7 +241,8 @@ def test_applied_action_is_the_policys_or_its_correction_to_the_turned_ramp():
     """``applied`` by hand: the policy's action itself with ``residual_scale`` 0; with s > 0 the
     reference turned by the yaw, (k + 1) dt / 1.5 s of it at step k, plus s x the correction, or
     with ``residual_rise`` 1 the sum ramped as a whole; clipped to [-1, 1]; under jit and vmap."""
-    env, p = make("reach_obstacles"), make("reach_obstacles").default_params()
+    env = make("reach_obstacles")
+    p = env.default_params()
     rng = np.random.default_rng(0)
     full, yaw, k = rng.uniform(-1, 1, (40, 4)), rng.uniform(-math.pi, math.pi, 40), np.arange(40) % 30
     ref, c, s = np.array(env.reference_action), np.cos(yaw)[:, None], np.sin(yaw)[:, None]
