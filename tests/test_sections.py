@@ -29,7 +29,7 @@ def cantilever(tip_load, direction, orders, **link) -> gv.Robot:
 
 
 def _force(robot, q):
-    _, F = dynamics.mass_and_forces(robot, [q[i] for i in range(robot.n_dofs)], [0.0] * robot.n_dofs)
+    _, F = dynamics.mass_and_forces(robot, [q[i] for i in range(robot.n_dofs)], [0] * robot.n_dofs)  # qd: int zeros
     return jnp.stack([jnp.asarray(f, float) for f in F])
 
 
