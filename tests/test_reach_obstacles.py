@@ -188,7 +188,7 @@ def test_planar_posts_let_a_slow_approach_through_and_stop_a_swing():
     """The posts' design claim: the reference action raised over 1.5 s reaches the nominal target
     without touching; applied at once, the swing presses > 1 cm into a post."""
     env2 = make("reach_obstacles_2d")
-    p2 = dataclasses.replace(env2.default_params(), target_jitter=(0.0, 0.0, 0.0))
+    p2 = ro.absolute(dataclasses.replace(env2.default_params(), target_jitter=(0.0, 0.0, 0.0)))
     slow, fast = (jax.jit(lambda k, s=s: ro.rollout(env2, p2, ro.held_policy(env2, ramp_s=s), k))(
         jax.random.PRNGKey(0)[None]) for s in (1.5, 0.0))
     assert float(slow["distance"][0, -1]) < 0.05 and float(slow["depth"][0].max()) == 0.0
@@ -200,7 +200,7 @@ def test_planar_variant_observes_its_last_action_and_charges_its_change():
     """The reward's action-rate term against its formula over two steps (from rest, then a change),
     the last action at the end of the observation, under jit."""
     env2 = make("reach_obstacles_2d")
-    p2 = dataclasses.replace(env2.default_params(), action_rate_weight=0.5)
+    p2 = dataclasses.replace(ro.absolute(env2.default_params()), action_rate_weight=0.5)  # tendon actions
     key = jax.random.PRNGKey(1)
     obs, state = jax.jit(env2.reset)(key, p2)
     assert obs.shape == (env2.obs_size,) and np.asarray(obs[-2:]).tolist() == [0.0, 0.0]
@@ -313,10 +313,10 @@ def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
     spec = importlib.util.spec_from_file_location("train_variant", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    name = module.variant("reach_obstacles_2d", {"residual_scale": 1.0, "final_weight": 10.0})
+    name = module.variant("reach_obstacles_2d", {"residual_scale": 1.0, "final_weight": 5.0})
     env, base = make(name), make("reach_obstacles_2d").default_params()
     got = env.default_params()
-    assert (got.residual_scale, got.final_weight) == (1.0, 10.0) and env.obs_size == 46
+    assert (got.residual_scale, got.final_weight) == (1.0, 5.0) and env.obs_size == 46
     assert (got.action_rate_weight, got.k, got.target_jitter) == (base.action_rate_weight, base.k, base.target_jitter)
     assert module.parse("0.05,0,0.02") == (0.05, 0.0, 0.02) and module.parse("3") == 3.0
     with pytest.raises(SystemExit, match="final_weight"):
