@@ -32,7 +32,7 @@ def pytest_configure(config):
                       int(os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"]))
 
 
-# The files that take longest (measured with --durations, one run on 2 cores), longest first.
+# The files that take longest (measured per test over one default run on 2 cores), longest first.
 # Under ``--dist loadfile`` a worker takes a whole file at a time, so these go out first and
 # the workers end on short files together. Only the order depends on this list.
 LONGEST_FILES = ("test_reach_obstacles.py", "test_ppo_train.py", "test_throw3d.py", "test_train_cli.py",

@@ -310,7 +310,8 @@ LAUNCH = ("import sys; sys.path.insert(0, 'tests'); from bandit_env import Bandi
 
 
 def _start(out, *args, task_args=SUB):
-    return subprocess.Popen([sys.executable, "-c", LAUNCH, *task_args, f"out={out}", *args], cwd=ROOT,
+    entry = ["-c", LAUNCH] if task_args[0] == "task=bandit" else ["-m", "gvsjax.train"]
+    return subprocess.Popen([sys.executable, *entry, *task_args, f"out={out}", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
