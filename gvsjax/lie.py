@@ -32,6 +32,8 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax import lax
 
 Scalar = Any
 Vec = tuple
@@ -50,20 +52,50 @@ def _is_one(a: Scalar) -> bool:
     return (type(a) is int or type(a) is float) and a == 1
 
 
+def _operands(a: Scalar, b: Scalar) -> tuple[Any, Any] | None:
+    """``a`` and ``b`` as operands ``lax`` takes as they are, or None.
+
+    Why: ``a * b`` on traced arrays goes through ``jnp.multiply``, a jitted function
+    that is traced and inlined on every call; the recursion makes tens of thousands
+    of such calls per step, and that was most of its tracing time. ``lax`` binds the
+    primitive directly. It is the same operation with the same result type, so this
+    path is taken only where ``jnp`` would not promote: two arrays of one floating
+    dtype (a shape-() one broadcast to the other's shape), or a strongly typed one
+    with a Python number (cast to its dtype, as ``jnp`` casts a weakly typed number)."""
+    aval_a, aval_b = getattr(a, "aval", None), getattr(b, "aval", None)
+    if aval_a is not None and aval_b is not None:
+        if aval_a.dtype != aval_b.dtype or aval_a.dtype.kind != "f":
+            return None
+        if aval_a.shape == aval_b.shape:
+            return a, b
+        if aval_a.shape == ():
+            return lax.broadcast_in_dim(a, aval_b.shape, ()), b
+        if aval_b.shape == ():
+            return a, lax.broadcast_in_dim(b, aval_a.shape, ())
+        return None
+    if aval_a is not None and type(b) in (float, int) and not aval_a.weak_type and aval_a.dtype.kind == "f":
+        return a, np.asarray(b, aval_a.dtype)
+    if aval_b is not None and type(a) in (float, int) and not aval_b.weak_type and aval_b.dtype.kind == "f":
+        return np.asarray(a, aval_b.dtype), b
+    return None
+
+
 def add(a: Scalar, b: Scalar) -> Scalar:
     if is_zero(a):
         return b
     if is_zero(b):
         return a
-    return a + b
+    ops = _operands(a, b)
+    return a + b if ops is None else lax.add(*ops)
 
 
 def sub(a: Scalar, b: Scalar) -> Scalar:
     if is_zero(b):
         return a
     if is_zero(a):
-        return -b
-    return a - b
+        return neg(b)
+    ops = _operands(a, b)
+    return a - b if ops is None else lax.sub(*ops)
 
 
 def mul(a: Scalar, b: Scalar) -> Scalar:
@@ -73,11 +105,15 @@ def mul(a: Scalar, b: Scalar) -> Scalar:
         return b
     if _is_one(b):
         return a
-    return a * b
+    ops = _operands(a, b)
+    return a * b if ops is None else lax.mul(*ops)
 
 
 def neg(a: Scalar) -> Scalar:
-    return 0 if is_zero(a) else -a
+    if is_zero(a):
+        return 0
+    aval = getattr(a, "aval", None)
+    return lax.neg(a) if aval is not None and not aval.weak_type and aval.dtype.kind == "f" else -a
 
 
 def total(terms: Sequence[Scalar]) -> Scalar:

@@ -49,3 +49,44 @@ def test_coefficient_functions_are_accurate_in_each_precision(name, dtype):
     tol_val, tol_rate = TOLERANCE[dtype]
     assert np.max(np.abs(np.asarray(val, float) - ref) / np.abs(ref)) < tol_val
     assert np.max(np.abs(np.asarray(rate, float) - ref_rate)) / np.max(np.abs(ref_rate)) < tol_rate
+
+
+def test_scalar_algebra_gives_what_the_jnp_operators_give():
+    """``lie.add/sub/mul/neg`` bind ``lax`` directly where no promotion is involved and fall back to
+    the operators elsewhere: for every pair of operand kinds (strong and weak arrays of both floating
+    dtypes, a shape-(3,) array, Python numbers, an integer array) the value, dtype, weak type and
+    shape equal the ``jnp`` operators', eagerly, under jit and under vmap; and gradients pass."""
+    operands = {"f64": jnp.asarray(1.25, jnp.float64), "f32": jnp.asarray(-0.75, jnp.float32),
+                "weak": jnp.asarray(0.5), "vec": jnp.asarray([1.5, -2.0, 0.25]), "vec32": jnp.ones(3, jnp.float32),
+                "float": 2.5, "int": 3, "ints": jnp.asarray(2, jnp.int32)}
+    assert operands["weak"].weak_type and not operands["f64"].weak_type
+    pairs = [(x, y) for x in operands for y in operands if not (x in ("float", "int") and y in ("float", "int"))]
+    ops = {lie.add: jnp.add, lie.sub: jnp.subtract, lie.mul: jnp.multiply}
+
+    def check(got, want, label):
+        got, want = jnp.asarray(got), jnp.asarray(want)
+        assert (got.dtype, got.shape, got.weak_type) == (want.dtype, want.shape, want.weak_type), label
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want), err_msg=str(label))
+
+    for x, y in pairs:
+        for op, ref in ops.items():
+            check(op(operands[x], operands[y]), ref(operands[x], operands[y]), (op.__name__, x, y))
+
+    @jax.jit  # the arrays traced (their weak types kept), the Python numbers as they are
+    def traced(arrays):
+        v = {**arrays, "float": 2.5, "int": 3}
+        return {f"{op.__name__}|{x}|{y}": (op(v[x], v[y]), ref(v[x], v[y]))
+                for x, y in pairs for op, ref in ops.items()}
+
+    for label, (got, want) in traced({k: v for k, v in operands.items() if k not in ("float", "int")}).items():
+        check(got, want, ("jit", label))
+    for x in ("f64", "f32", "weak", "vec", "ints"):
+        check(lie.neg(operands[x]), -operands[x], ("neg", x))
+    # under vmap: a batched shape-() operand against an unbatched one of the other's dtype
+    batch = jnp.asarray([0.5, 1.0, 2.0])
+    for op, ref in ops.items():
+        check(jax.vmap(op, (0, None))(batch, operands["f64"]), ref(batch, operands["f64"]), ("vmap", op.__name__))
+        check(jax.vmap(op, (None, 0))(2.0, batch), ref(2.0, batch), ("vmap float", op.__name__))
+    # gradients: d/dx of x * (x - 2) + (-x) at x = 1.5 is 2 x - 3
+    grad = jax.grad(lambda x: lie.add(lie.mul(x, lie.sub(x, 2.0)), lie.neg(x)))(jnp.asarray(1.5))
+    assert float(grad) == 0.0
