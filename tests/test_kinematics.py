@@ -48,10 +48,10 @@ def test_jacobians_map_rates_to_twists():
 
 def test_gradients_finite_at_straight_configuration():
     arm = gv.paper_arm(tip_force=5.886)
-    g = jax.grad(lambda q: jnp.sum(gv.tip_state(arm, q, jnp.ones(3))[1]))(jnp.zeros(3))
+    g = jax.jit(jax.grad(lambda q: jnp.sum(gv.tip_state(arm, q, jnp.ones(3))[1])))(jnp.zeros(3))
     assert np.all(np.isfinite(g))
-    rod = gv.rod_3d()
-    g3 = jax.grad(lambda q: jnp.sum(gv.tip_state(rod, q, jnp.ones(rod.n_dofs))[1]))(jnp.zeros(rod.n_dofs))
+    rod = gv.rod_3d()  # jitted: eagerly, each of its many scalar ops would be dispatched on its own
+    g3 = jax.jit(jax.grad(lambda q: jnp.sum(gv.tip_state(rod, q, jnp.ones(rod.n_dofs))[1])))(jnp.zeros(rod.n_dofs))
     assert np.all(np.isfinite(g3))
 
 

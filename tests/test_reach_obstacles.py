@@ -28,6 +28,13 @@ def params(env):
     return env.default_params()
 
 
+@pytest.fixture(scope="module")
+def batched(env):
+    """reset and step under jit(vmap), made once: the tests below that run a batch of 3 share
+    the traced and compiled programs (the params are traced)."""
+    return jax.jit(jax.vmap(env.reset, (0, None))), jax.jit(jax.vmap(env.step, (0, 0, 0, None)))
+
+
 def _segment_distance(P, a, b):
     e = b - a
     t = np.clip((P - a) @ e / (e @ e), 0.0, 1.0)
@@ -63,18 +70,18 @@ def test_turn_is_a_rotation_about_the_vertical():
     np.testing.assert_allclose(np.linalg.norm(np.asarray(turn(x, 0.7)), axis=1), np.linalg.norm(x, axis=1), rtol=1e-14)
 
 
-def _held_episode(env, params, n_steps, action=None, ramp_steps=0):
+def _held_episode(env, batched, params, n_steps, action=None, ramp_steps=0):
     """Three episodes under ``action`` (default: the reference action) raised linearly over
     ``ramp_steps`` then held: the fixed scene, the scene turned by 90 deg, and the fixed scene with
     a NaN first action, all as tendon actions (``absolute``). Returns the last (obs, state, reward,
     info) and the first step's info and reward."""
     params = ro.absolute(params)
     keys = jax.random.split(jax.random.PRNGKey(0), 3)
-    _, state = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
+    reset, step = batched
+    _, state = reset(keys, params)
     yaw = jnp.array([0.0, math.pi / 2, 0.0])
     state = dataclasses.replace(state, yaw=yaw, target=turn(jnp.asarray(params.target)[None].repeat(3, 0), yaw))
     policy = ro.held_policy(env, action)
-    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
     first = None
     for t in range(n_steps):
         a = policy(jax.vmap(ro.env.observe, in_axes=(0, None))(state, params)) * min(1.0, (t + 1) / (ramp_steps + 1))
@@ -84,11 +91,11 @@ def _held_episode(env, params, n_steps, action=None, ramp_steps=0):
 
 
 @pytest.mark.slow
-def test_the_scene_turns_symmetrically_under_jit_and_vmap_and_the_reward_is_as_documented(env, params):
+def test_the_scene_turns_symmetrically_under_jit_and_vmap_and_the_reward_is_as_documented(env, batched, params):
     """The tendons sit at quarters, so a scene turned by 90 deg gives the same episode turned (the
     yaw, the turned layout and the turned held action all enter). Also: jit(vmap) of reset/step,
     the reward's formula while pressing a bar, a NaN action flagged while the batch runs on."""
-    obs, state, reward, info, (info0, reward0) = _held_episode(env, params, 6)
+    obs, state, reward, info, (info0, reward0) = _held_episode(env, batched, params, 6)
     assert np.asarray(info0["valid"]).tolist() == [True, True, False] and float(reward0[2]) == 0.0
     np.testing.assert_allclose(np.asarray(info["distance"][1]), np.asarray(info["distance"][0]), rtol=1e-7)
     np.testing.assert_allclose(np.asarray(info["depth"][1]), np.asarray(info["depth"][0]), rtol=1e-5, atol=1e-9)
@@ -103,12 +110,12 @@ def test_the_scene_turns_symmetrically_under_jit_and_vmap_and_the_reward_is_as_d
 
 
 @pytest.mark.extended
-def test_held_action_comes_to_rest_on_newtons_statics_with_the_same_obstacles(env, params):
+def test_held_action_comes_to_rest_on_newtons_statics_with_the_same_obstacles(env, batched, params):
     """Raised slowly, the planar task's reference action lays the arm's end on the bar under the
     target. The env (16 ars443 steps per 0.1 s, the contact explicit) must come to rest where
     Newton's statics with the same obstacles (the contact forces in the residual) put it."""
     action = (0.7, 0.0, 1.0, 0.0)
-    _, state, _, _, _ = _held_episode(env, params, 60, action, ramp_steps=15)  # 1.5 s up, 6 s in all
+    _, state, _, _, _ = _held_episode(env, batched, params, 60, action, ramp_steps=15)  # 1.5 s up, 6 s in all
     robot = ro.scene(params, 0.0).robot
     arm = dataclasses.replace(params.arm, robot=robot)
     eq = gv.equilibrium(robot, tendon_force=arm3d.tensions(jnp.asarray(action), arm), load_scale_steps=8)
@@ -259,18 +266,17 @@ def test_applied_action_is_the_policys_or_its_correction_to_the_turned_ramp():
 
 
 @pytest.mark.slow
-def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
+def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more(env, batched):
     """With ``residual_scale`` s the applied tendon action is clip(ramp + s x action), the ramp (the
     reference action turned by the drawn yaw, (k + 1) dt / 1.5 s of it at step k) by hand: zero
     actions apply the ramp baseline's; with ``final_weight`` w the reward's closeness term counts
     1 + w times at the last step only; with ``residual_rise`` 1 the corrections rise with the ramp;
     under jit and vmap."""
-    env = make("reach_obstacles")
     res = dataclasses.replace(env.default_params(), yaw_range=math.pi, residual_scale=0.5, residual_rise=0.0,
                               final_weight=4.0)
-    keys = jax.random.split(jax.random.PRNGKey(4), 3)  # the scene test's batch: the same step program
-    state = jax.jit(jax.vmap(env.reset, (0, None)))(keys, res)[1]
-    step = jax.jit(jax.vmap(env.step, (0, 0, 0, None)))
+    keys = jax.random.split(jax.random.PRNGKey(4), 3)  # the scene test's batch: the same programs
+    reset, step = batched
+    state = reset(keys, res)[1]
     ref, c, s = np.array(env.reference_action), np.cos(np.asarray(state.yaw)), np.sin(np.asarray(state.yaw))
     turned = np.stack([ref[0] * c - ref[1] * s, ref[0] * s + ref[1] * c, ref[2] * c - ref[3] * s,
                        ref[2] * s + ref[3] * c], -1)
@@ -289,7 +295,7 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more():
     assert np.all(np.asarray(done)) and np.all(np.asarray(info["valid"]))
     # residual_rise 1: the corrections rise with the ramp too (the same compiled step: a traced param)
     rising = dataclasses.replace(res, residual_rise=1.0)
-    state = jax.jit(jax.vmap(env.reset, (0, None)))(keys, rising)[1]
+    state = reset(keys, rising)[1]
     for k in range(3):
         state = step(keys, state, jnp.asarray(correction), rising)[1]
         np.testing.assert_allclose(np.asarray(state.last_action),
@@ -323,14 +329,14 @@ def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
         module.variant("reach_obstacles", {"finalweight": 1.0})
 
 
-def test_random_layouts_move_each_capsule_and_the_gaps_follow(env, params):
+def test_random_layouts_move_each_capsule_and_the_gaps_follow(env, batched, params):
     """``layout_jitter``: each capsule of each episode moves by its own draw within the jitter (before
     the scene's turn), the yaw and target draws unchanged; the rest arm's gaps (each sample's 10 cm
     piece of the straight arm) against distances to the moved, turned capsules by hand; under jit
     and vmap."""
     moved = dataclasses.replace(params, yaw_range=math.pi, layout_jitter=(0.05, 0.02, 0.05))
     keys = jax.random.split(jax.random.PRNGKey(7), 3)
-    reset = jax.jit(jax.vmap(env.reset, (0, None)))
+    reset = batched[0]
     state = reset(keys, moved)[1]
     still = reset(keys, dataclasses.replace(moved, layout_jitter=(0.0, 0.0, 0.0)))[1]
     shift = np.asarray(state.shift)

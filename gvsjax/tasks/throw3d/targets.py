@@ -134,6 +134,7 @@ def _tables(n_T, n_delta, n_yaw, n_samples, per_path, cell, per_cell, base: Thro
     fast = dataclasses.replace(base, sim_dtype="float32")
     throw = jax.jit(jax.vmap(lambda T, d, s: release_state(fast, T, d, s)))
     p0s, v0s = [], []
+    chunk = min(chunk, len(phys))  # a small table is not padded to a large chunk
     for i in range(0, len(phys), chunk):  # fixed chunk shape: one compilation
         part = phys[i:i + chunk]
         pad = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), 0)])
