@@ -13,7 +13,7 @@ import shutil
 import tempfile
 
 # The suite is compile-bound, and LLVM's optimisation of the generated code is a large share of
-# each compile. Level 0 cut the default run's CPU time by about a quarter on two cores; the
+# each compile. Level 0 cut the default run's CPU time by about a fifth on two cores; the
 # programs compute the same operations (the tests' tolerances hold). Set before JAX starts its
 # backend; subprocesses inherit it. Speed is measured by benchmarks, which keep XLA's defaults.
 _OPT = "--xla_backend_optimization_level"
