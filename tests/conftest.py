@@ -46,7 +46,7 @@ def pytest_configure(config):
 LONGEST_FILES = ("test_reach_obstacles.py", "test_ppo_train.py", "test_throw3d.py", "test_train_cli.py",
                  "test_simulation.py", "test_basketball.py", "test_balance.py", "test_reach_pose.py",
                  "test_track3d.py", "test_pickplace.py", "test_sections.py", "test_physics_references.py",
-                 "test_contact.py", "test_identify.py", "test_statics.py", "test_gym.py")
+                 "test_contact.py", "test_statics.py", "test_gym.py")
 
 
 def pytest_collection_modifyitems(config, items):
