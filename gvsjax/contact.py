@@ -332,7 +332,7 @@ def report(robot: Robot, q, qd, t) -> tuple[jax.Array, jax.Array]:
         return jnp.zeros((0, 3), q.dtype), jnp.zeros((0,), q.dtype)
     n = robot.n_dofs
     qs, qds = [q[i] for i in range(n)], [qd[i] for i in range(n)]
-    _, forces, gaps = evaluate(robot, forward(robot, qs, qds, with_psi=False), qs, qds, t)
+    _, forces, gaps = evaluate(robot, forward(robot, qs, qds, with_psi=False, jacobian=False), qs, qds, t)
     return jnp.concatenate(forces), jnp.concatenate(gaps)
 
 

@@ -295,7 +295,7 @@ def energy(robot: Robot, q: jnp.ndarray, qd: jnp.ndarray) -> dict[str, Any]:
     coords(robot, qd, "qd")
     qs = [q[i] for i in range(n)]
     qds = [qd[i] for i in range(n)]
-    points = forward(robot, qs, qds, with_psi=False)
+    points = forward(robot, qs, qds, with_psi=False, jacobian=False)
     g_world = tuple(mul(robot.gravity, const(c)) for c in robot.gravity_direction)
     kinetic, grav, loads = 0, 0, 0
 

@@ -37,10 +37,13 @@ from gvsjax.magnus import (
 from gvsjax.model import RigidLink, Robot, SoftLink
 
 
-def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> list[Point]:
+def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True,
+            jacobian: bool = True) -> list[Point]:
     """Run the base-to-tip recursion and return every sample point.
 
     q, qd: sequences of n scalars (arrays of shape () or scalar-algebra values).
+    ``jacobian=False``: the points' J are left zero (poses and twists are unchanged); the
+    pass is then n times smaller, which is what poses and velocities alone need.
     """
     n = robot.n_dofs
     R = lie.const_mat(robot.base_rotation)
@@ -60,9 +63,10 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True) -> l
             Od = vscale(qd[j0 + k], phi_j)
             R_s, p_s = lie.exp_se3(O)
             # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
-            state = advance(state, R_s, p_s, [phi_j], [j0 + k], Od, zeros(6), with_psi)
+            cols = ([phi_j], [j0 + k]) if jacobian else ([], [])
+            state = advance(state, R_s, p_s, *cols, Od, zeros(6), with_psi)
         if isinstance(link, SoftLink):
-            state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi)
+            state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi, jacobian)
         else:
             state = _rigid_link(li, link, state, points)
         ends.append(state)
@@ -74,18 +78,19 @@ def _record(points, li, X, kind, weight, state):
     points.append(Point(li, X, kind, weight, R, p, J, eta, psi))
 
 
-def _magnus_step(state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi):
+def _magnus_step(state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi, jacobian=True):
     """Advance the state over one interval of length h (m): P1, P2 are the scaled basis
     columns at the two Zanna points, rest1, rest2 the reference strains there."""
     xi1, xi2 = strain(P1, qs, rest1), strain(P2, qs, rest2)
     xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
-    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, xd1, xd2, P1, P2, h, with_psi)
-    return advance(state, R_s, p_s, S_cols, idx, S_qd, Sdot_qd, with_psi)
+    cols = (P1, P2) if jacobian else ([], [])
+    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, xd1, xd2, *cols, h, with_psi)
+    return advance(state, R_s, p_s, S_cols, idx if jacobian else [], S_qd, Sdot_qd, with_psi)
 
 
-def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
+def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=True):
     if scan.uses_scan(link, robot.n_dofs):
-        return scan.soft_link(robot, li, link, qs, qds, s0, state, points, with_psi)
+        return scan.soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian)
     grid = grid_of(robot, li)
     L = link.length
     inv_L = 1.0 / L
@@ -97,7 +102,7 @@ def _soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         P2 = scaled_columns(grid.phi2[i], inv_L)
         h = mul(const(grid.dX[i]), L)
         state = _magnus_step(state, P1, P2, rest_strain(link, float(x1[i])), rest_strain(link, float(x2[i])),
-                             h, qs, qds, idx, with_psi)
+                             h, qs, qds, idx, with_psi, jacobian)
         _record(points, li, float(grid.X[i + 1]), "soft", mul(const(grid.w[i + 1]), L), state)
     return state
 
@@ -185,14 +190,14 @@ def _scalars(robot: Robot, x: Any, name: str) -> list:
 def backbone(robot: Robot, q: jax.Array) -> jax.Array:
     """World positions of every sample point along the robot, shape (n_points, 3)."""
     q_s = _scalars(robot, q, "q")
-    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False))
+    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False, jacobian=False))
     return jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
 
 
 def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World rotations (n_points, 3, 3) and positions (n_points, 3) of every sample point."""
     q_s = _scalars(robot, q, "q")
-    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False))
+    pts = rows(forward(robot, q_s, [0] * len(q_s), with_psi=False, jacobian=False))
     R = jnp.stack([jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R]) for pt in pts])
     p = jnp.stack([jnp.stack([lie.as_array(a) for a in pt.p]) for pt in pts])
     return R, p
@@ -201,7 +206,8 @@ def frames(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
 def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World position (3,) and linear velocity (3,) of the robot's last point (the far end of
     its last link)."""
-    pt = rows(forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False)[-1:])[-1]
+    pt = rows(forward(robot, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False,
+                       jacobian=False)[-1:])[-1]
     vel = lie.matvec(pt.R, pt.eta[3:])
     return (
         jnp.stack([lie.as_array(a) for a in pt.p]),
@@ -212,7 +218,7 @@ def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax
 def tip_frame(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:
     """World rotation (3, 3) and position (3,) of the robot's last point; the rotation's first
     column is the rod's tangent there (its axis, for a soft link)."""
-    pt = rows(forward(robot, _scalars(robot, q, "q"), [0] * robot.n_dofs, with_psi=False)[-1:])[-1]
+    pt = rows(forward(robot, _scalars(robot, q, "q"), [0] * robot.n_dofs, with_psi=False, jacobian=False)[-1:])[-1]
     R = jnp.stack([jnp.stack([lie.as_array(a) for a in row]) for row in pt.R])
     return R, jnp.stack([lie.as_array(a) for a in pt.p])
 

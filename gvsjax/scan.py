@@ -40,7 +40,7 @@ def uses_scan(link: SoftLink, n_dofs: int | None = None) -> bool:
     return n_dofs >= SCAN_MIN_DOFS and link.n_gauss >= SCAN_MIN_GAUSS
 
 
-def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
+def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=True):
     """``_soft_link`` as a ``lax.scan`` over the intervals, recording one stacked point.
 
     Two things keep the compiled program small: one Magnus step is traced
@@ -57,6 +57,8 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
     R0, p0, J0, eta0, psi0 = state
     n = len(J0)
     cols = [k for k in range(s0) if any(not lie.is_zero(a) for a in J0[k])] + list(range(s0, s0 + n_s))
+    if not jacobian:  # J stays zero: no columns travel
+        cols = []
     n_prev = len(cols) - n_s
     arr = lambda a: jnp.asarray(lie.as_array(a), dtype)  # noqa: E731
     vec = lambda xs: 0 if all(lie.is_zero(x) for x in xs) else jnp.stack([arr(x) for x in xs])  # noqa: E731
@@ -88,13 +90,15 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi):
         rest1, rest2 = (XI_STAR, XI_STAR) if link.rest_strain is None else (
             tuple(x["rest1"][r] for r in range(6)), tuple(x["rest2"][r] for r in range(6)))
         xi1, xi2 = vadd(rest1, combine(P1, qv)), vadd(rest2, combine(P2, qv))
-        R_s, p_s, (S,), S_qd, Sdot_qd = magnus(xi1, xi2, combine(P1, qdv), combine(P2, qdv), [P1], [P2],
-                                              mul(x["h"], L), with_psi)
-        J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
+        R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, combine(P1, qdv), combine(P2, qdv),
+                                                 [P1] if jacobian else [], [P2] if jacobian else [],
+                                                 mul(x["h"], L), with_psi)
+        if jacobian:
+            J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S_cols[0]))
+            J = lie.ad_inv_apply(R_s, p_s, J)
         if with_psi:
             psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
         eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
-        J = lie.ad_inv_apply(R_s, p_s, J)
         R, p = lie.compose(R, p, R_s, p_s)
         out = pack(R, p, J, eta, psi)
         return out, out

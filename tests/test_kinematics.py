@@ -46,6 +46,27 @@ def test_jacobians_map_rates_to_twists():
     np.testing.assert_allclose(gv.jacobian_rates(robot, q, qd), fd, atol=1e-7)
 
 
+@pytest.mark.parametrize("make", [rigid_soft_chain, lambda: gv.soft_arm(recursion="scan")], ids=["unrolled", "scan"])
+def test_the_pass_without_jacobians_gives_the_same_poses_and_twists(make):
+    """``forward(jacobian=False)`` (tip_state, frames, energy and the contact report use it)
+    leaves every J zero and every pose and twist as the full pass has them (to rounding: the
+    scanned pass is one compiled loop, whose fusions differ when it carries no Jacobian)."""
+    from gvsjax import lie
+    from gvsjax.kinematics import forward, rows
+
+    robot = make()
+    rng = np.random.default_rng(2)
+    q, qd = (list(jnp.asarray(0.3 * rng.normal(size=robot.n_dofs))) for _ in range(2))
+    full, lean = (rows(forward(robot, q, qd, with_psi=False, jacobian=j)) for j in (True, False))
+    assert len(full) == len(lean) > 3
+    as_array = lambda tree: np.asarray(jax.tree.map(lie.as_array, tree), float)  # noqa: E731
+    for a, b in zip(full, lean):
+        for name in ("R", "p", "eta"):
+            np.testing.assert_allclose(as_array(getattr(b, name)), as_array(getattr(a, name)), rtol=1e-14, atol=1e-16)
+        assert not np.any(as_array(b.J))
+    assert np.any(as_array(full[-1].J))
+
+
 def test_gradients_finite_at_straight_configuration():
     arm = gv.paper_arm(tip_force=5.886)
     g = jax.jit(jax.grad(lambda q: jnp.sum(gv.tip_state(arm, q, jnp.ones(3))[1])))(jnp.zeros(3))
