@@ -65,7 +65,7 @@ def test_uniform_muscle_action_bends_the_weightless_arm_into_the_closed_form_arc
 @pytest.mark.extended
 def test_muscle_env_under_jit_and_vmap(env):
     P = env.default_params()
-    assert P.arm.actuation == "muscle" and env.action_size == 12 and env.obs_size == make("track3d").obs_size
+    assert P.arm.actuation == "muscle" and env.action_size == 12 and env.obs_size == make("track3d").obs_size + 8
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
     obs, s = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, P)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))

@@ -109,7 +109,9 @@ def test_env_under_jit_and_vmap(env):
     P = env.default_params()
     keys = jax.random.split(jax.random.PRNGKey(1), 3)
     obs, s = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, P)
-    assert obs.shape == (3, env.obs_size) and np.all(np.asarray(obs[:, -1]) == 1.0)
+    left = -env.action_size - 1  # the fraction of the episode left, then the last action
+    assert obs.shape == (3, env.obs_size) and np.all(np.asarray(obs[:, left]) == 1.0)
+    assert not np.any(np.asarray(obs[:, left + 1:]))
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
     actions = jnp.array([[1.0, 0, 0, 0], [0, 0, 0, 0], [jnp.nan, 0, 0, 0]])
     tips = []
@@ -126,8 +128,21 @@ def test_env_under_jit_and_vmap(env):
     # the arm stands, settling under its weight (rho g L^2 / 2E = 0.5 mm)
     assert tips[-1][0, 0] > tips[0][0, 0] > 0.05
     np.testing.assert_allclose(tips[-1][1], [0, 0, 1], atol=1e-3)
-    np.testing.assert_allclose(np.asarray(obs[:2, -1]), 1 - 3 / env.episode_length)
-    assert env.observation_space().shape == (env.obs_size,)
+    np.testing.assert_allclose(np.asarray(obs[:2, left]), 1 - 3 / env.episode_length)
+    np.testing.assert_allclose(np.asarray(obs[:2, left + 1:]), np.asarray(actions[:2]))
+    space = env.observation_space()
+    assert space.shape == (env.obs_size,) and space.low[left] == 0 and space.high[-1] == 1
+    # the action-rate term (the same program: the weight is a traced param); row 0 changes by (-2, 2, 0, 0.5)
+    new = jnp.array([[-1.0, 2.0, 0, 0.5], [0, 0, 0, 0], [0, 0, 0, 0]])
+    P2 = P.replace(action_rate_weight=0.5)
+    obs, s, reward, done, info = step(jax.random.split(jax.random.PRNGKey(3), 3), s, new, P2)
+    change = np.array([(4 + 1 + 0 + 0.25) / 4, 0.0])  # the applied action is clipped to [-1, 1]
+    np.testing.assert_allclose(np.asarray(info["action_change"][:2]), change, rtol=1e-12)
+    r, d = np.asarray(reward[:2]), np.asarray(info["distance"][:2])
+    np.testing.assert_allclose(r, np.exp(-P.k * d) - 0.5 * change, rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(obs[0, left + 1:]), [-1, 1, 0, 0.5])
+    with pytest.raises(ValueError, match="action_rate_weight=-0.1"):
+        env.reset(keys[0], P.replace(action_rate_weight=-0.1))
 
 
 def test_wrong_arm_or_action_shape_is_refused_before_compiling(env):

@@ -9,12 +9,14 @@ bending moments at six control points (``Track3DMuscle``; ``gvsjax.tasks.actuati
 Parts of the box lie beyond a 1 m arm's reach (its upper corners are 1.2 m from
 the base), so no policy follows the target everywhere.
 
-Observation (34,) for the default arm: the tip's position (m) and velocity (m/s),
+Observation (38,) for the default arm: the tip's position (m) and velocity (m/s),
 the strain coordinates and rates (scaled, ``arm3d.arm_features``), the target's
-position (m) and velocity / speed, the target minus the tip (m), and the
-fraction of the episode left. Reward per step exp(-k d) in (0, 1], d the
-tip-to-target distance (m) at the end of the step. A non-finite or
-out-of-bound state ends the episode with ``info["valid"] = False`` and reward 0.
+position (m) and velocity / speed, the target minus the tip (m), the fraction of
+the episode left and the last action (clipped to [-1, 1]; 0 at the start). Reward
+per step exp(-k d) in (0, 1], d the tip-to-target distance (m) at the end of the
+step, minus ``action_rate_weight`` x the mean squared change of the action (0 by
+default). A non-finite or out-of-bound state ends the episode with
+``info["valid"] = False`` and reward 0.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ class Track3DState:
     target_velocity: jax.Array  # (3,) m/s
     tension: jax.Array  # (n_tendons,) N, held during the last step (0 under muscle actuation)
     step: jax.Array  # () int32, control steps taken
+    action: jax.Array  # (action_size,) the last action, clipped to [-1, 1] (0 before the first)
 
 
 def observe(state: Track3DState, params: Track3DParams) -> jax.Array:
@@ -57,7 +60,7 @@ def observe(state: Track3DState, params: Track3DParams) -> jax.Array:
     left = 1.0 - state.step / params.episode_steps
     return jnp.concatenate([arm3d.arm_features(robot, state.q, state.qd, state.tip, state.tip_velocity),
                             state.target, state.target_velocity / params.speed, state.target - state.tip,
-                            jnp.asarray(left, state.q.dtype)[None]])
+                            jnp.asarray(left, state.q.dtype)[None], state.action.astype(state.q.dtype)])
 
 
 def rest_tip(params: Track3DParams) -> jax.Array:
@@ -70,7 +73,7 @@ class Track3D(Environment):
     """Closed-loop tracking of a moving 3D target."""
 
     name = "track3d"
-    obs_size = 34  # 6 + 2 x 9 strain coordinates + 10
+    obs_size = 38  # 6 + 2 x 9 strain coordinates + 10 + the last action
     action_size = 4
     episode_length = 100
     rows_file = "eval_episodes.csv"
@@ -82,7 +85,10 @@ class Track3D(Environment):
         return Track3DParams()
 
     def _check(self, params: Track3DParams) -> None:
-        arm3d.check_task(self, params.arm, params.episode_steps, other_obs=10)
+        arm3d.check_task(self, params.arm, params.episode_steps, other_obs=10 + self.action_size)
+        w = params.action_rate_weight
+        if isinstance(w, (int, float)) and not (np.isfinite(w) and w >= 0):
+            raise ValueError(f"action_rate_weight={w!r} is invalid for {self.name}; expected a number >= 0")
 
     def with_sim_dtype(self, params: Track3DParams, sim_dtype: str) -> Track3DParams:
         return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))
@@ -90,7 +96,9 @@ class Track3D(Environment):
     def observation_space(self, params=None) -> Box:
         low = np.full(self.obs_size, -np.inf)
         high = np.full(self.obs_size, np.inf)
-        low[-1], high[-1] = 0.0, 1.0
+        left = self.obs_size - self.action_size - 1
+        low[left], high[left] = 0.0, 1.0
+        low[left + 1:], high[left + 1:] = -1.0, 1.0
         return Box(low, high)
 
     def reset(self, key, params: Track3DParams):
@@ -102,7 +110,7 @@ class Track3D(Environment):
         tip = rest_tip(params)
         state = Track3DState(q=q, qd=qd, tip=tip, tip_velocity=jnp.zeros(3), target=target,
                              target_velocity=velocity, tension=jnp.zeros(len(robot.tendons)),
-                             step=jnp.zeros((), jnp.int32))
+                             step=jnp.zeros((), jnp.int32), action=jnp.zeros(self.action_size))
         return observe(state, params), state
 
     def step(self, key, state: Track3DState, action, params: Track3DParams):
@@ -114,13 +122,16 @@ class Track3D(Environment):
         target, velocity = move(key, state.target, state.target_velocity, params)
         d = jnp.sqrt(jnp.sum((tip - target) ** 2))
         valid = finite & arm3d.healthy(params.arm.robot, q, qd) & jnp.isfinite(d)
-        reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, d, 0.0)), 0.0)
+        applied = jnp.clip(action, -1.0, 1.0)
+        change = jnp.mean((applied - state.action) ** 2)
+        reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, d, 0.0)) - params.action_rate_weight * change,
+                           0.0)
         keep = lambda new, old: jnp.where(valid, new, old)  # noqa: E731
         new = Track3DState(q=keep(q, state.q), qd=keep(qd, 0.0 * state.qd), tip=keep(tip, state.tip),
                            tip_velocity=keep(tip_velocity, 0.0 * state.tip_velocity), target=target,
-                           target_velocity=velocity, tension=tension, step=state.step + 1)
+                           target_velocity=velocity, tension=tension, step=state.step + 1, action=applied)
         done = (new.step >= self.episode_length) | ~valid
-        info = {"distance": d, "valid": valid, "truncated": jnp.zeros((), bool)}
+        info = {"distance": d, "valid": valid, "truncated": jnp.zeros((), bool), "action_change": change}
         return observe(new, params), new, reward, done, info
 
     # ------------------------------------------------------------------ evaluation
@@ -134,7 +145,9 @@ class Track3D(Environment):
         settle = int(round(SETTLE_S / params.arm.control_dt))
         metrics = {"n_episodes": int(n_episodes), "valid_fraction": float(np.mean(out["valid"][:, -1])),
                    "all_steps": distance_summary(d), f"after_{SETTLE_S:g}s": distance_summary(d[:, settle:]),
-                   "rest_arm_after_2s": distance_summary(rest[:, settle:])}
+                   "rest_arm_after_2s": distance_summary(rest[:, settle:]),
+                   # the mean squared change of the action per control step (each entry in [-1, 1])
+                   "mean_action_change": float(np.mean(out["action_change"][out["valid"]]))}
         rows = {"mean_distance_m": d.mean(1), f"mean_distance_after_{SETTLE_S:g}s_m": d[:, settle:].mean(1),
                 "p95_distance_m": np.percentile(d, 95, axis=1), "within_5cm": np.mean(d < 0.05, 1),
                 "within_10cm": np.mean(d < 0.10, 1), "valid": out["valid"][:, -1]}
@@ -147,7 +160,8 @@ class Track3D(Environment):
         return (f"eval on {metrics['n_episodes']} episodes: mean distance {100 * a['mean_m']:.1f} cm "
                 f"(p95 {100 * a['p95_m']:.1f}), within 5 cm {100 * a['within_5cm']:.1f}% and 10 cm "
                 f"{100 * a['within_10cm']:.1f}% of the time; after {SETTLE_S:g} s: mean {100 * b['mean_m']:.1f} cm, "
-                f"within 5 cm {100 * b['within_5cm']:.1f}%, 10 cm {100 * b['within_10cm']:.1f}%")
+                f"within 5 cm {100 * b['within_5cm']:.1f}%, 10 cm {100 * b['within_10cm']:.1f}%; "
+                f"mean squared action change per step {metrics.get('mean_action_change', float('nan')):.3f}")
 
     def figures(self, params: Track3DParams, result: EvalResult, out: Path) -> list[Path]:
         return figures.evaluation_figures(result.extra, out)
@@ -175,6 +189,7 @@ class Track3DMuscle(Track3D):
 
     name = "track3d_muscle"
     action_size = 12
+    obs_size = 46  # and its 12 last actions
 
     def default_params(self) -> Track3DParams:
         return Track3DParams(arm=ArmParams(actuation="muscle"))
@@ -194,7 +209,8 @@ def rollout(env: Track3D, params: Track3DParams, policy: Policy, keys: jax.Array
     the rest state.
     """
     def record(state, info):
-        rec = {"distance": info["distance"], "tip": state.tip, "target": state.target}
+        rec = {"distance": info["distance"], "tip": state.tip, "target": state.target,
+               "action_change": info["action_change"]}
         return {**rec, "q": state.q} if record_q else rec
 
     first, rec = record_episodes(env, params, policy, keys, record)
