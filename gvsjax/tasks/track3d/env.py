@@ -122,7 +122,7 @@ class Track3D(Environment):
         target, velocity = move(key, state.target, state.target_velocity, params)
         d = jnp.sqrt(jnp.sum((tip - target) ** 2))
         valid = finite & arm3d.healthy(params.arm.robot, q, qd) & jnp.isfinite(d)
-        applied = jnp.clip(action, -1.0, 1.0)
+        applied = jnp.clip(action, -1.0, 1.0).astype(state.action.dtype)  # a carried state keeps its dtype
         change = jnp.mean((applied - state.action) ** 2)
         reward = jnp.where(valid, jnp.exp(-params.k * jnp.where(valid, d, 0.0)) - params.action_rate_weight * change,
                            0.0)
