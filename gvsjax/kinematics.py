@@ -63,8 +63,8 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True,
             Od = vscale(qd[j0 + k], phi_j)
             R_s, p_s = lie.exp_se3(O)
             # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
-            cols = ([phi_j], [j0 + k]) if jacobian else ([], [])
-            state = advance(state, R_s, p_s, *cols, Od, zeros(6), with_psi)
+            state = advance(state, R_s, p_s, [phi_j] if jacobian else [], [j0 + k] if jacobian else [], Od, zeros(6),
+                            with_psi)
         if isinstance(link, SoftLink):
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi, jacobian)
         else:
@@ -83,8 +83,8 @@ def _magnus_step(state, P1, P2, rest1, rest2, h, qs, qds, idx, with_psi, jacobia
     columns at the two Zanna points, rest1, rest2 the reference strains there."""
     xi1, xi2 = strain(P1, qs, rest1), strain(P2, qs, rest2)
     xd1, xd2 = strain_rate(P1, qds), strain_rate(P2, qds)
-    cols = (P1, P2) if jacobian else ([], [])
-    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, xd1, xd2, *cols, h, with_psi)
+    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, xd1, xd2, P1 if jacobian else [], P2 if jacobian else [],
+                                             h, with_psi)
     return advance(state, R_s, p_s, S_cols, idx if jacobian else [], S_qd, Sdot_qd, with_psi)
 
 
