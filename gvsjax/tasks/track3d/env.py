@@ -14,9 +14,9 @@ the strain coordinates and rates (scaled, ``arm3d.arm_features``), the target's
 position (m) and velocity / speed, the target minus the tip (m), the fraction of
 the episode left and the last action (clipped to [-1, 1]; 0 at the start). Reward
 per step exp(-k d) in (0, 1], d the tip-to-target distance (m) at the end of the
-step, minus ``action_rate_weight`` x the mean squared change of the action (0 by
-default). A non-finite or out-of-bound state ends the episode with
-``info["valid"] = False`` and reward 0.
+step, minus ``action_rate_weight`` x the mean squared change of the action (0.1 by
+default; 0 for ``Track3DMuscle``, whose runs were trained without it). A non-finite
+or out-of-bound state ends the episode with ``info["valid"] = False`` and reward 0.
 """
 
 from __future__ import annotations
@@ -192,7 +192,7 @@ class Track3DMuscle(Track3D):
     obs_size = 46  # and its 12 last actions
 
     def default_params(self) -> Track3DParams:
-        return Track3DParams(arm=ArmParams(actuation="muscle"))
+        return Track3DParams(arm=ArmParams(actuation="muscle"), action_rate_weight=0.0)
 
 
 def distance_summary(d: np.ndarray) -> dict[str, float]:
