@@ -3,7 +3,8 @@
 The batch runs ``jit(vmap(step))`` with auto-reset (as PPO's rollout does) for
 ``--steps`` steps inside one ``lax.scan``, on the task's training params; the time is
 the median of ``--repeats`` calls after a compiling one. Several tasks, or variants of
-one (``TASK:name=value,...`` replaces numeric fields of its training params), are
+one (``TASK:name=value:name=value`` replaces fields of its training params, values as
+``train_variant.py`` reads them), are
 timed in turn in one process, call by call, so that their ratio does not depend on
 the machine's drift. Plain tasks' results merge into a JSON file, one entry per task
 and batch; variants are printed only.
@@ -24,6 +25,7 @@ import time
 from pathlib import Path
 
 import jax
+from train_variant import check_overrides, parse  # experiments/ is on sys.path when run as a script
 
 import gvsjax as gv  # noqa: F401  (XLA flags first)
 from gvsjax.tasks import auto_reset_step, make
@@ -31,16 +33,12 @@ from gvsjax.tasks import auto_reset_step, make
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def parse_case(spec: str) -> tuple[str, dict[str, float]]:
-    """``TASK`` or ``TASK:name=value,name=value`` -> (task, overrides)."""
-    task, _, rest = spec.partition(":")
-    overrides = {}
-    for item in filter(None, rest.split(",")):
-        name, sep, value = item.partition("=")
-        if not sep:
-            raise SystemExit(f"--task {spec!r}: expected TASK:name=value,...")
-        overrides[name] = float(value)
-    return task, overrides
+def parse_case(spec: str) -> tuple[str, dict]:
+    """``TASK`` or ``TASK:name=value:name=value`` -> (task, overrides)."""
+    task, *items = spec.split(":")
+    if not all("=" in item for item in items):
+        raise SystemExit(f"--task {spec!r}: expected TASK:name=value:name=value")
+    return task, {name: parse(value) for name, value in (item.split("=", 1) for item in items)}
 
 
 def prepare(spec: str, batch: int, steps: int):
@@ -48,9 +46,7 @@ def prepare(spec: str, batch: int, steps: int):
     task, overrides = parse_case(spec)
     env = make(task)
     params = env.train_params()
-    unknown = sorted(set(overrides) - {f.name for f in dataclasses.fields(params)})
-    if unknown:
-        raise SystemExit(f"{unknown} are not params of {task}")
+    check_overrides(task, params, overrides)
     params = dataclasses.replace(params, **overrides)
     step = jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None))
 
@@ -70,7 +66,7 @@ def prepare(spec: str, batch: int, steps: int):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--task", required=True, nargs="+", help="TASK or TASK:name=value,... (several: timed in turn)")
+    ap.add_argument("--task", required=True, nargs="+", help="TASK or TASK:name=value:... (several: timed in turn)")
     ap.add_argument("--batch", type=int, default=1024)
     ap.add_argument("--steps", type=int, default=20, help="env steps per timed call")
     ap.add_argument("--repeats", type=int, default=5)

@@ -19,13 +19,18 @@ import gvsjax.train
 from gvsjax.tasks import make, register
 
 
-def variant(task: str, overrides: dict[str, float]) -> str:
-    """Register ``task`` with ``overrides`` in its default params; returns the variant's name."""
-    base = type(make(task))
-    fields = {f.name for f in dataclasses.fields(base().default_params())}
+def check_overrides(task: str, params, overrides: dict) -> None:
+    """Exit naming the ``overrides`` that are not fields of ``task``'s ``params``."""
+    fields = {f.name for f in dataclasses.fields(params)}
     unknown = sorted(set(overrides) - fields)
     if unknown:
         raise SystemExit(f"{unknown} are not params of {task}; choose from {sorted(fields)}")
+
+
+def variant(task: str, overrides: dict[str, float]) -> str:
+    """Register ``task`` with ``overrides`` in its default params; returns the variant's name."""
+    base = type(make(task))
+    check_overrides(task, base().default_params(), overrides)
 
     class Variant(base):  # type: ignore[misc, valid-type]
         def default_params(self):
