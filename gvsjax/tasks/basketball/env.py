@@ -73,7 +73,7 @@ class Basketball(Environment):
     # (the mean otherwise jumps by several stds per update), clipped-action log-probs (the
     # top-right corner needs T = 0.5 s, the box's edge) and 1.2M episodes (docs/tasks.md). The
     # trunk is wider than the paper's 128-32-16: the steep map to the fast top-court throws needs
-    # the width for centimetre precision on every seed, at ~1.06x the cost of an update.
+    # the width for centimetre precision on every seed, at ~1.1x the cost of an update.
     ppo_defaults = dict(
         shared_hidden=(128, 64, 32),
         num_envs=1024, num_steps=1, num_minibatches=8, update_epochs=8,
