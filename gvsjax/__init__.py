@@ -45,6 +45,7 @@ _warn_if_backend_started()
 jax.config.update("jax_enable_x64", True)
 
 from gvsjax.contact import Box, Capsule, Contact, ContactSite, Penalty, Plane, Sphere  # noqa: E402
+from gvsjax.curvature_arm import CURVATURE_ARM, curvature_arm  # noqa: E402
 from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
 from gvsjax.identify import Fit, fit_parameters  # noqa: E402
 from gvsjax.kinematics import (  # noqa: E402
@@ -63,6 +64,7 @@ from gvsjax.model import (  # noqa: E402
     PointLoad,
     PointMass,
     PointWrench,
+    RestStrainSegments,
     RigidLink,
     Robot,
     RoutedTendon,
@@ -90,10 +92,11 @@ from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
 from gvsjax.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
-    "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RigidLink", "Robot", "SoftLink", "StrainBasis",
+    "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RestStrainSegments", "RigidLink", "Robot",
+    "SoftLink", "StrainBasis",
     "Tendon", "RoutedTendon", "TendonPath", "PAPER_ARM", "paper_arm", "PAPER_ARM_3D", "paper_arm_3d", "rod_3d",
     "TENDON_ARM", "tendon_arm",
-    "SOFT_ARM", "soft_arm", "simulate", "Trajectory", "stable_step_estimate",
+    "SOFT_ARM", "soft_arm", "CURVATURE_ARM", "curvature_arm", "simulate", "Trajectory", "stable_step_estimate",
     "axis_rotation", "backbone", "frames", "sample_sites", "end_row",
     "tip_frame", "tip_state", "jacobians", "jacobian_rates", "energy", "mass_and_forces",
     "stiffness_and_damping", "equilibrium", "inverse_statics", "fit_parameters", "Fit", "moment_map", "control_points",

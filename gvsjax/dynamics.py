@@ -44,7 +44,8 @@ class Section:
 def _geometry(link: SoftLink, scale) -> tuple[tuple, tuple]:
     """(Ip, Iy, Iz, A, A, A) for inertia and (Jt, Iy, Iz, A, A, A) for stiffness, dimensions
     multiplied by ``scale``. Jt is Saint-Venant's torsion constant: the polar moment for a
-    circle, pi a^3 b^3 / (a^2 + b^2) for an ellipse, Roark's series for a rectangle."""
+    circle, pi a^3 b^3 / (a^2 + b^2) for an ellipse, Roark's series for a rectangle; or, with
+    ``torsion_constant="polar"``, Iy + Iz for every shape."""
     if link.shape == "circle":
         r = link.radius * scale
         area, second = math.pi * r * r, math.pi * r**4 / 4.0
@@ -60,6 +61,8 @@ def _geometry(link: SoftLink, scale) -> tuple[tuple, tuple]:
         long, short = jnp.maximum(w, h), jnp.minimum(w, h)
         r = short / long
         jt = long * short**3 * (1.0 / 3.0 - 0.21 * r * (1.0 - r**4 / 12.0))
+    if link.torsion_constant == "polar":
+        jt = iy + iz
     return (iy + iz, iy, iz, area, area, area), (jt, iy, iz, area, area, area)
 
 

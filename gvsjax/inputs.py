@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import integrators
+from gvsjax import active_strain, integrators
 from gvsjax.model import Robot
 from gvsjax.system import Law
 from gvsjax.validation import concrete, require
@@ -135,10 +135,17 @@ def strain_force_law(robot: Robot, strain_force) -> tuple[Law | None, Any]:
     return input_law("strain_force", strain_force, n, "coordinates", False)
 
 
+def rest_strain_law(robot: Robot, rest_strain) -> tuple[Law | None, Any]:
+    """Rest-strain values at ``robot.rest_strains``, (n_values,) or one entry's (n_segments,
+    n_components): (callable law or None, constant array or None)."""
+    value = active_strain.check_value(robot, rest_strain)
+    return input_law("rest_strain", value, active_strain.size(robot), "rest-strain values", False)
+
+
 @dataclass(frozen=True)
 class Controller:
     """A feedback controller ``(t, q, qd) -> {"tendon_force": (n_t,), "joint_force": (n_j,), "wrench": (n_w, 6),
-    "strain_force": (n,)}`` (any subset of the keys)
+    "strain_force": (n,), "rest_strain": (n_values,)}`` (any subset of the keys)
     sampled every ``every`` integrator steps and held in between (zero-order hold).
 
     Hashed by the function's identity (the compiled program is reused)."""
@@ -152,11 +159,11 @@ class Controller:
         return {k: jnp.reshape(jnp.asarray(out[k]).astype(jnp.result_type(t)), (-1,)) for k in self.keys}
 
 
-CONTROL_KEYS = ("tendon_force", "joint_force", "wrench", "strain_force")
+CONTROL_KEYS = ("tendon_force", "joint_force", "wrench", "strain_force", "rest_strain")
 
 
 def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None,
-               strain_force=None) -> Controller | None:
+               strain_force=None, rest_strain=None) -> Controller | None:
     """The checked zero-order-hold controller, or None."""
     if fn is None:
         require(every is None, "control_every", every, "None without a controller")
@@ -170,9 +177,10 @@ def controller(robot: Robot, fn, every, tendon_force, joint_force, wrench=None,
     require(isinstance(out, dict) and bool(out) and set(out) <= set(CONTROL_KEYS), "controller", fn,
             f"a callable returning a dict with keys among {list(CONTROL_KEYS)}")
     sizes = {"tendon_force": len(robot.tendons), "joint_force": len(robot.actuated),
-             "wrench": 6 * len(robot.wrenches), "strain_force": robot.n_dofs}
+             "wrench": 6 * len(robot.wrenches), "strain_force": robot.n_dofs,
+             "rest_strain": sum(int(np.prod(s.shape)) for s in robot.rest_strains)}
     for key, given in (("tendon_force", tendon_force), ("joint_force", joint_force), ("wrench", wrench),
-                       ("strain_force", strain_force)):
+                       ("strain_force", strain_force), ("rest_strain", rest_strain)):
         if key in out:
             require(given is None, key, given, "None when the controller sets it")
             require(math.prod(out[key].shape) == sizes[key] > 0, "controller", fn,

@@ -13,6 +13,7 @@ every sample point).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -35,6 +36,7 @@ from gvsjax.magnus import (
     zanna_points,
 )
 from gvsjax.model import RigidLink, Robot, SoftLink
+from gvsjax.validation import require
 
 
 def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True,
@@ -213,6 +215,33 @@ def tip_state(robot: Robot, q: jax.Array, qd: jax.Array) -> tuple[jax.Array, jax
         jnp.stack([lie.as_array(a) for a in pt.p]),
         jnp.stack([lie.as_array(a) for a in vel]),
     )
+
+
+def point_states(robot: Robot, q: jax.Array, qd: jax.Array, points: Sequence[tuple[int, float]]) -> tuple:
+    """World positions (k, 3), linear velocities (k, 3) and rotations (k, 3, 3) at the material
+    points ``points`` ((link, X) pairs; X in [0, 1]), in their order. One pass of the recursion
+    with the points added to its grid (``Robot.sample_points``), without Jacobians."""
+    n = len(robot.links)
+    for link, X in points:
+        require(isinstance(link, (int, np.integer)) and -n <= link < n and 0.0 <= float(X) <= 1.0, "points",
+                points, f"(link in [-{n}, {n}), X in [0, 1]) pairs")
+    wanted = [(int(link) % n, float(X)) for link, X in points]
+    sampled = dataclasses.replace(robot, sample_points=tuple(robot.sample_points) + tuple(wanted))
+    pts = rows(forward(sampled, _scalars(robot, q, "q"), _scalars(robot, qd, "qd"), with_psi=False, jacobian=False))
+    sites = [(pt.link, float(pt.X)) for pt in pts]
+    picked = [pts[_site_index(sites, w)] for w in wanted]
+    stack = lambda xs: jnp.stack([lie.as_array(a) for a in xs])  # noqa: E731
+    p = jnp.stack([stack(pt.p) for pt in picked])
+    v = jnp.stack([stack(lie.matvec(pt.R, pt.eta[3:])) for pt in picked])
+    R = jnp.stack([jnp.stack([stack(row) for row in pt.R]) for pt in picked])
+    return p, v, R
+
+
+def _site_index(sites: list, wanted: tuple[int, float]) -> int:
+    """The row of a sampled point (a rigid link has rows at its CoM, X = 0.5, and its end, X = 1)."""
+    hits = [i for i, (li, x) in enumerate(sites) if li == wanted[0] and abs(x - wanted[1]) < 1e-12]
+    require(bool(hits), "points", wanted, "a soft link's material point, or X in (0.5, 1) on a rigid link")
+    return hits[0]
 
 
 def tip_frame(robot: Robot, q: jax.Array) -> tuple[jax.Array, jax.Array]:

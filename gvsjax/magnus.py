@@ -66,10 +66,11 @@ def link_grid(basis: StrainBasis, n_gauss: int, extra: tuple[float, ...] = ()) -
 
 
 def extra_points(robot: Robot, link_index: int) -> tuple[float, ...]:
-    """Material points of a link where a load or mass acts (sampled exactly)."""
+    """Material points of a link where a load or mass acts, or that are observed (sampled exactly)."""
     n = len(robot.links)
     return tuple(
-        sorted({float(m.X) for m in (*robot.loads, *robot.masses, *robot.wrenches) if m.link % n == link_index})
+        sorted({float(m.X) for m in (*robot.loads, *robot.masses, *robot.wrenches) if m.link % n == link_index}
+               | {float(X) for link, X in robot.sample_points if link % n == link_index})
     )
 
 

@@ -177,6 +177,7 @@ class Material:
 
 
 SECTION_SHAPES = ("circle", "ellipse", "rectangle")
+TORSION_CONSTANTS = ("saint_venant", "polar")
 
 
 @struct.dataclass
@@ -200,6 +201,7 @@ class SoftLink:
     "auto" (scan once the robot has 12 DoFs and the link 2 Gauss points). The
     results agree to rounding.
 
+    ``torsion_constant`` picks the Jt of the torsional stiffness G Jt (see the field).
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
     by default (SoRoSim's convention); ``damping_factors`` scales each entry
     of ``diag(J, I, I, A, A, A)``, for other damping conventions.
@@ -218,6 +220,9 @@ class SoftLink:
     n_gauss: int = struct.field(pytree_node=False, default=5)
     recursion: str = struct.field(pytree_node=False, default="auto")
     damping_factors: tuple = struct.field(pytree_node=False, default=(1.0, 3.0, 3.0, 3.0, 1.0, 1.0))
+    # torsional stiffness G Jt: "saint_venant" (the exact torsion constant of the section) or "polar"
+    # (Iy + Iz, SoRoSim's choice; the same for a circle, stiffer for an ellipse or a rectangle)
+    torsion_constant: str = struct.field(pytree_node=False, default="saint_venant")
     joint_stiffness: Any = 0.0  # N m/rad or N/m, per joint DoF (a scalar applies to each)
     joint_damping: Any = 0.0  # N m s/rad or N s/m, per joint DoF
 
@@ -339,6 +344,24 @@ class PointWrench:
 
 
 @struct.dataclass
+class RestStrainSegments:
+    """Where a time-varying rest strain acts: piecewise-constant changes of link ``link``'s
+    rest strain xi*(X) on the segments between ``knots`` (material points 0 <= X_0 < ... <= 1),
+    for the strain ``components`` named (``STRAIN_NAMES``). Its value, (n_segments,
+    n_components) in 1/m (angular) or dimensionless (linear), is ``simulate``'s ``rest_strain``
+    input (a constant, a law of t or of (t, q, qd), or a controller's output); see
+    ``gvsjax.active_strain``."""
+
+    link: int = struct.field(pytree_node=False, default=0)
+    knots: tuple = struct.field(pytree_node=False, default=(0.0, 1.0))
+    components: tuple = struct.field(pytree_node=False, default=("bend_y", "bend_z"))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (len(self.knots) - 1, len(self.components))
+
+
+@struct.dataclass
 class Robot:
     """A chain or a tree of links from a fixed base, with loads and tendons.
 
@@ -358,6 +381,9 @@ class Robot:
     (``gvsjax.loads`` has drag and uniform-force helpers). Static: a new
     function recompiles.
     ``contact``: None, or a ``gvsjax.contact.Contact`` (obstacles and the penalty law).
+    ``rest_strains``: ``RestStrainSegments`` where ``simulate``'s ``rest_strain`` input acts.
+    ``sample_points``: extra (link, X) material points the recursion samples exactly (observed
+    points; ``kinematics.point_states`` adds its own for one pass).
     """
 
     links: tuple
@@ -367,6 +393,7 @@ class Robot:
     tendons: tuple = ()
     wrenches: tuple = ()
     contact: Any = None
+    rest_strains: tuple = ()
     distributed: Any = struct.field(pytree_node=False, default=None)
     gravity_direction: tuple = struct.field(pytree_node=False, default=(0.0, -1.0, 0.0))
     base_rotation: tuple = struct.field(
@@ -374,6 +401,7 @@ class Robot:
     )
     prescribed: tuple = struct.field(pytree_node=False, default=())
     parents: tuple = struct.field(pytree_node=False, default=())
+    sample_points: tuple = struct.field(pytree_node=False, default=())
 
     def parent(self, i: int) -> int:
         """The link that link ``i`` starts from, -1 for the base."""

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax import contact, inputs, integrators
+from gvsjax import active_strain, contact, inputs, integrators
 from gvsjax.kinematics import tip_state
 from gvsjax.model import Robot
 from gvsjax.stability import stable_step_estimate
@@ -35,6 +35,7 @@ def simulate(
     joint_force: Any = None,
     wrench: Any = None,
     strain_force: Any = None,
+    rest_strain: Any = None,
     controller: Callable | None = None,
     control_every: int | None = None,
     check_stability: bool = True,
@@ -64,8 +65,13 @@ def simulate(
     of every coordinate (N m or N; e.g. ``gvsjax.muscles.moment_map(robot) @ u``,
     internal moments on the strain coordinates), or a callable of t or of
     (t, q, qd) returning it.
+    rest_strain: None, or values of the rest strain's change at the robot's
+    ``rest_strains`` segments ((n_values,), or (n_segments, n_components) for a
+    single ``RestStrainSegments``; 1/m for curvature and twist), a constant or a
+    callable of t or of (t, q, qd): active strain (``gvsjax.active_strain``).
     controller, control_every: a sampled feedback controller (t, q, qd) ->
-    {"tendon_force": ..., "joint_force": ..., "wrench": ..., "strain_force": ...}
+    {"tendon_force": ..., "joint_force": ..., "wrench": ..., "strain_force": ...,
+    "rest_strain": ...}
     (any of the keys) evaluated every
     ``control_every`` integrator steps on the current state, its outputs held
     in between (zero-order hold, as a digital controller or an RL policy acts).
@@ -90,9 +96,11 @@ def simulate(
     laws = (("base_angle", base_angle, (1,), False), ("joint_motion", joint_motion, (len(robot.prescribed),), False),
             ("tendon_force", tendon_force, (1, len(robot.tendons)), True),
             ("joint_force", joint_force, (1, len(robot.actuated)), True),
-            ("wrench", wrench, (6 * len(robot.wrenches),), True), ("strain_force", strain_force, (n,), True))
+            ("wrench", wrench, (6 * len(robot.wrenches),), True), ("strain_force", strain_force, (n,), True),
+            ("rest_strain", rest_strain, (active_strain.size(robot),), True))
     inputs.check_call(robot, integrator, duration, dt, n_steps, save_every, laws)
-    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench, strain_force)
+    control = inputs.controller(robot, controller, control_every, tendon_force, joint_force, wrench, strain_force,
+                                rest_strain)
     dtype = inputs.float_dtype(dtype)
     n_steps, dt = inputs.steps(duration, dt, n_steps)
     require(isinstance(save_every, int) and save_every >= 1 and n_steps % save_every == 0,
@@ -104,6 +112,7 @@ def simulate(
     force_law, force_value = inputs.joint_force_law(robot, joint_force)
     wrench_law, wrench_value = inputs.wrench_law(robot, wrench)
     strain_law, strain_value = inputs.strain_force_law(robot, strain_force)
+    rest_law, rest_value = inputs.rest_strain_law(robot, rest_strain)
     if check_stability and concrete(dt) and concrete(q0) and inputs.robot_is_concrete(robot):
         limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
         require(float(dt) <= limit, "dt", float(dt),
@@ -113,14 +122,14 @@ def simulate(
         require(n_steps % control.every == 0, "control_every", control.every,
                 f"a divisor of n_steps={n_steps} (whole control periods)")
     values = tuple(None if v is None else v.astype(dtype)
-                   for v in (tension_value, force_value, wrench_value, strain_value))
+                   for v in (tension_value, force_value, wrench_value, strain_value, rest_value))
     if dtype == np.float32:  # float64 array leaves (a traced E, say) would lift the run back to float64
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
     run = _run.__wrapped__ if _building_a_program() else _run  # type: ignore[attr-defined]
     return run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
                 jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
-                integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law),
+                integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law, rest_law),
                 control=control)
 
 
@@ -153,10 +162,12 @@ def _input(law, value):
 
 def _held(system: FreeDynamics, held: dict) -> FreeDynamics:
     """``system`` with the controller's held outputs in place of its own inputs."""
-    pick = lambda key, own: (lambda t, q, qd: held[key]) if key in held else own  # noqa: E731
-    return FreeDynamics(system.robot, system.motion, pick("tendon_force", system.tension),
-                        pick("joint_force", system.joint_force), pick("wrench", system.wrench),
-                        pick("strain_force", system.strain_force))
+    if not held:
+        return system
+    value = lambda key: (lambda t, q, qd: held[key])  # noqa: E731
+    names = {"tendon_force": "tension", "joint_force": "joint_force", "wrench": "wrench",
+             "strain_force": "strain_force", "rest_strain": "rest_strain"}
+    return system.with_inputs(**{names[k]: value(k) for k in held})
 
 
 def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:

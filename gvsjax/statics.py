@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
 
-from gvsjax import dynamics, lie
+from gvsjax import active_strain, dynamics, lie
 from gvsjax.inputs import initial
 from gvsjax.kinematics import backbone
 from gvsjax.model import Robot
@@ -214,15 +214,16 @@ def _prescribed(robot: Robot, value: Any, q0: jax.Array, name: str) -> jax.Array
 
 
 def equilibrium(robot: Robot, q0: Any = None, *, tendon_force: Any = None, prescribed: Any = None,
-                strain_force: Any = None, load_scale_steps: int = 1, tol: float = 1e-10,
-                max_iter: int = 50) -> StaticsResult:
+                strain_force: Any = None, rest_strain: Any = None, load_scale_steps: int = 1,
+                tol: float = 1e-10, max_iter: int = 50) -> StaticsResult:
     """The static equilibrium F(q, qd = 0) = 0 of the free DoFs.
 
     q0: (n,) starting guess (default: straight, q = 0). tendon_force: tension(s)
     >= 0 N, one value or one per tendon (default 0). prescribed: (n_prescribed,)
     values at which ``robot.prescribed`` DoFs are held (default: their q0).
     strain_force: (n,) generalized force added to F, as ``simulate``'s (default 0;
-    e.g. ``gvsjax.muscles.moment_map(robot) @ u``).
+    e.g. ``gvsjax.muscles.moment_map(robot) @ u``). rest_strain: values at
+    ``robot.rest_strains``, as ``simulate``'s (default 0; ``gvsjax.active_strain``).
     load_scale_steps: k > 1 solves with gravity, point loads, tensions and strain_force
     scaled by 1/k, 2/k, ..., 1, each Newton solve starting from the last (for
     loads beyond Newton's reach from q0). tol: on the relative residual (see
@@ -230,7 +231,7 @@ def equilibrium(robot: Robot, q0: Any = None, *, tendon_force: Any = None, presc
     is not an exception: check ``converged``.
 
     Differentiable (first order, implicit function theorem) in the robot's
-    leaves, tendon_force, prescribed and strain_force.
+    leaves, tendon_force, prescribed, strain_force and rest_strain.
     """
     q0 = _check(robot, q0, load_scale_steps, tol, max_iter)
     tension = _tension(robot, tendon_force, "tendon_force")
@@ -239,6 +240,10 @@ def equilibrium(robot: Robot, q0: Any = None, *, tendon_force: Any = None, presc
     generalized = jnp.zeros(n) if strain_force is None else _vector(
         "strain_force", strain_force, n, f"finite generalized forces, one per coordinate, shape ({n},)", False,
         ((n,),))
+    rest = active_strain.check_value(robot, rest_strain)
+    if rest is not None:
+        require(not callable(rest), "rest_strain", rest, "values, not a callable (statics has no time)")
+        generalized = generalized + active_strain.force_map(robot) @ rest
     return _solve_jit(robot, q0, tension, qa, generalized, load_scale_steps, tol, max_iter)
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from gvsjax import dynamics, lie
+from gvsjax import active_strain, dynamics, lie
 from gvsjax.model import Robot
 
 
@@ -51,15 +51,43 @@ class FreeDynamics:
     ``tension``, ``joint_force``, ``wrench`` and ``strain_force`` are ``Law``-like
     callables ``(t, q, qd)`` (or None: zero); ``q``, ``qd`` are the full coordinate
     vectors. ``strain_force`` returns (n,), a generalized force added to F as it is
-    (e.g. ``gvsjax.muscles``' moments mapped onto the strain coordinates).
+    (e.g. ``gvsjax.muscles``' moments mapped onto the strain coordinates); ``rest_strain``
+    returns the values at ``robot.rest_strains``, added as ``B @ values``
+    (``gvsjax.active_strain``; ``rest_map`` is B when already built).
     """
 
     def __init__(self, robot: Robot, motion: Callable, tension: Callable | None = None,
                  joint_force: Callable | None = None, wrench: Callable | None = None,
-                 strain_force: Callable | None = None):
+                 strain_force: Callable | None = None, rest_strain: Callable | None = None,
+                 rest_map: jax.Array | None = None):
         self.robot, self.motion, self.tension, self.joint_force = robot, motion, tension, joint_force
-        self.wrench, self.strain_force = wrench, strain_force
+        self.wrench, self.strain_force, self.rest_strain = wrench, strain_force, rest_strain
+        # built once per program, outside the time loop
+        self.rest_map = rest_map if rest_map is not None or rest_strain is None else active_strain.force_map(robot)
         self.a, self.u = robot.prescribed, robot.free
+
+    def with_inputs(self, **laws: Callable | None) -> FreeDynamics:
+        """The same system with some input laws replaced (a controller's held outputs)."""
+        own = dict(tension=self.tension, joint_force=self.joint_force, wrench=self.wrench,
+                   strain_force=self.strain_force, rest_strain=self.rest_strain)
+        own.update(laws)
+        rest_map = self.rest_map if own["rest_strain"] is not None else None
+        if rest_map is None and own["rest_strain"] is not None:
+            rest_map = active_strain.force_map(self.robot)
+        return FreeDynamics(self.robot, self.motion, rest_map=rest_map, **own)
+
+    def generalized_input(self, t, q, qd):
+        """The inputs acting on the coordinates directly, (n,) or None: strain_force + B rest_strain."""
+        tau = None
+        if self.strain_force is not None or self.rest_strain is not None:
+            qv, qdv = _vector(q), _vector(qd)
+            if self.strain_force is not None:
+                tau = self.strain_force(t, qv, qdv)
+            if self.rest_strain is not None:
+                assert self.rest_map is not None
+                extra = self.rest_map.astype(qv.dtype) @ self.rest_strain(t, qv, qdv)
+                tau = extra if tau is None else tau + extra
+        return tau
 
     def prescribed_state(self, t):
         """q_a, qd_a, qdd_a at time t (derivatives of the law by autodiff)."""
@@ -98,8 +126,8 @@ class FreeDynamics:
         q, qd, qdda = self.full_state(t, q_u, qd_u)
         tension, force, wrench = self.inputs(t, q, qd)
         M, F = dynamics.mass_and_forces(self.robot, q, qd, tension, force, wrench, t)
-        if self.strain_force is not None:
-            tau = self.strain_force(t, _vector(q), _vector(qd))
+        tau = self.generalized_input(t, q, qd)
+        if tau is not None:
             F = [lie.add(f, tau[i]) for i, f in enumerate(F)]
         return q, qd, qdda, M, F
 

@@ -66,7 +66,7 @@ def integer(name: str, value: Any, low: int = 1) -> None:
 
 def check_robot(robot) -> None:
     """Physical sanity of every link, load, mass and tendon (concrete leaves only)."""
-    from gvsjax.model import SECTION_SHAPES, RigidLink, RoutedTendon, SoftLink, Tendon
+    from gvsjax.model import SECTION_SHAPES, TORSION_CONSTANTS, RigidLink, RoutedTendon, SoftLink, Tendon
 
     require(len(robot.links) >= 1, "links", robot.links, "at least one link")
     nonnegative("gravity", robot.gravity)
@@ -84,6 +84,8 @@ def check_robot(robot) -> None:
         if isinstance(link, SoftLink):
             positive(f"links[{i}].length", link.length)
             require(link.shape in SECTION_SHAPES, f"links[{i}].shape", link.shape, f"one of {SECTION_SHAPES}")
+            require(link.torsion_constant in TORSION_CONSTANTS, f"links[{i}].torsion_constant",
+                    link.torsion_constant, f"one of {TORSION_CONSTANTS}")
             for name in ("radius",) if link.shape == "circle" else ("width", "height"):
                 positive(f"links[{i}].{name}", getattr(link, name))
             positive(f"links[{i}].taper", link.taper)
@@ -126,6 +128,8 @@ def check_robot(robot) -> None:
         require(0.0 <= site.X <= 1.0, f"wrenches[{k}].X", site.X, "a material coordinate in [0, 1]")
     require(robot.distributed is None or callable(robot.distributed), "distributed", robot.distributed,
             "None or a callable (X, R, p, eta, t) -> (6,) per-metre wrench")
+    for k, seg in enumerate(robot.rest_strains):
+        _check_rest_segments(robot, k, seg)
     for k, pm in enumerate(robot.masses):
         nonnegative(f"masses[{k}].mass", pm.mass)
         require(-n <= pm.link < n, f"masses[{k}].link", pm.link, f"a link index in [-{n}, {n})")
@@ -218,3 +222,27 @@ def _check_routed(robot, k: int, td) -> None:
                     f"the continuation of paths[{j - 1}]: a child of link {p_li} from X=0 after link {p_li} "
                     "ended at X=1, across a fixed joint")
         previous = (li, stop)
+
+
+def _check_rest_segments(robot, k: int, seg) -> None:
+    """A ``RestStrainSegments`` on a soft link whose basis has each named strain, with ordered knots."""
+    from gvsjax.model import STRAIN_NAMES, RestStrainSegments, SoftLink
+
+    where = f"rest_strains[{k}]"
+    require(isinstance(seg, RestStrainSegments), where, type(seg).__name__, "a RestStrainSegments")
+    n = len(robot.links)
+    require(isinstance(seg.link, (int, np.integer)) and -n <= seg.link < n
+            and isinstance(robot.links[seg.link], SoftLink), f"{where}.link", seg.link, "the index of a soft link")
+    knots = np.asarray(seg.knots, dtype=float) if isinstance(seg.knots, (tuple, list)) else np.zeros(0)
+    require(knots.ndim == 1 and knots.size >= 2 and knots[0] >= 0.0 and knots[-1] <= 1.0
+            and bool(np.all(np.diff(knots) > 0)), f"{where}.knots", seg.knots,
+            "a tuple of >= 2 increasing material points in [0, 1] (the segments' ends)")
+    comps = seg.components
+    require(isinstance(comps, (tuple, list)) and len(comps) >= 1 and len(set(comps)) == len(comps)
+            and all(c in STRAIN_NAMES for c in comps), f"{where}.components", comps,
+            f"distinct names among {list(STRAIN_NAMES)}")
+    orders = robot.links[seg.link].basis.orders
+    lacking = [c for c in comps if orders[STRAIN_NAMES.index(c)] < 0]
+    require(not lacking, f"{where}.components", comps,
+            f"strains the link's basis has (orders {orders}; inactive: {lacking})")
+
