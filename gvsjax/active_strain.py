@@ -24,7 +24,7 @@ rest_strain=u)`` and ``equilibrium(..., rest_strain=u)`` take the values ``u``, 
 by segment, and concatenated) or ``(n_segments, n_components)`` for a single entry.
 A piecewise-constant delta is not in a polynomial basis: its projection shows Gibbs
 ripples along the link, but the tip pose, an integral of the strain, converges fast
-with the basis order (docs/physics.md, "Rest-strain inputs").
+with the basis order (docs/modelling.md, "Rest-strain inputs").
 
 ``force_map(robot)`` is the (n_dofs, n_values) matrix B with tau = B u, integrated
 exactly (Gauss-Legendre on each segment) and traced from the robot's leaves, so a

@@ -18,7 +18,7 @@ rest curvature theta / l there: a piecewise-constant rest strain, which
 each with a constant curvature (and twist) per bending direction (Legendre order
 ``bending_order``, 0 by default): the piecewise-constant rest curvature is then in the
 basis exactly, and the links' strains converge to the continuum rod's as the order
-grows (docs/tasks_benchmark.md, "The arm": the tip moves ~1 mm from order 0 to 1,
+grows (docs/tasks_benchmark.md, "The arm": the tip is ~1 mm off a finer split at order 0,
 where a single link with a polynomial basis is still ~1 cm off at order 8).
 ``planar=True`` keeps the bending in the world x-z plane (the benchmark's 2D tasks);
 ``twist=True`` adds the rest twist of each segment (the 4D IK task). The rod is
