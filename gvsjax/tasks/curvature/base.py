@@ -159,8 +159,9 @@ class CurvatureTask(Environment):
         metrics.update(self.physical_metrics(out, params))
         rows = {"discounted_return_average": returns["average"], "discounted_return_start": returns["start"],
                 "return": returns["undiscounted"], **self.episode_rows(out, params), "valid": out["valid"][:, -1]}
-        return EvalResult(metrics=metrics, rows=rows, extra={"out": {k: v[:8] for k, v in out.items()},
-                                                             "rows": rows, "dt": params.arm.control_dt})
+        extra = {"out": {k: v[:8] for k, v in out.items()}, "rows": rows, "dt": params.arm.control_dt,
+                 "distance": np.where(out["valid"], out["distance"], np.inf)}
+        return EvalResult(metrics=metrics, rows=rows, extra=extra)
 
     def physical_metrics(self, out: dict, params) -> dict:
         return {}

@@ -47,8 +47,7 @@ def evaluation_figures(env: Any, extra: dict, out: Path) -> list[Path]:
     rows = extra["rows"]
     paths = [return_histogram(rows["discounted_return_average"], out / "return_histogram.png",
                               "discounted return (gamma 0.99, averaged over start steps)")]
-    # the recorded episodes: the first eight
-    paths.append(distance_over_time(extra["out"]["distance"], extra["dt"], out / "distance_over_time.png"))
+    paths.append(distance_over_time(extra["distance"], extra["dt"], out / "distance_over_time.png"))
     return paths
 
 
