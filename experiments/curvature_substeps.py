@@ -74,8 +74,8 @@ def main(batch: int = 256, episodes: int = 64) -> dict:
                          "env_steps_per_s": batch / float(np.median(times))})
             r = rows[-1]
             print(f"{dtype} {n:2d} substeps: tip error median {r['tip_error_mm_median']:.3f} mm, p95 "
-                  f"{r['tip_error_mm_p95']:.3f}, max {r['tip_error_mm_max']:.3f}; {r['env_steps_per_s']:.0f} env steps/s",
-                  flush=True)
+                  f"{r['tip_error_mm_p95']:.3f}, max {r['tip_error_mm_max']:.3f}; "
+                  f"{r['env_steps_per_s']:.0f} env steps/s", flush=True)
     out = {"reference": "32 ars443 steps per 0.1 s, float64", "episodes": episodes, "control_steps": STEPS,
            "batch": batch, "rows": rows}
     OUT.write_text(json.dumps(out, indent=2) + "\n")
