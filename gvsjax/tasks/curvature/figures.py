@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import jax
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -100,6 +101,4 @@ def episode_gif(env: Any, params: Any, path, out: dict, fps: int, dpi: int) -> P
 
 
 def _first(batched: Any) -> Any:
-    import jax
-
     return jax.tree.map(lambda x: x[0], batched)
