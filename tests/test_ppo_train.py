@@ -309,3 +309,30 @@ def test_adaptive_kl_lowers_the_rate_after_a_large_step_and_raises_it_after_a_sm
     _, metrics = make_update(config, env, env_params, updates_per_call=3)(state)
     np.testing.assert_allclose(np.asarray(metrics["learning_rate"]), FAST.learning_rate * (1 - np.arange(3) / 3),
                                rtol=1e-6)
+
+
+@pytest.mark.parametrize("antithetic", [False, True])
+def test_stagger_starts_cuts_each_first_episode_once_at_a_random_step(antithetic):
+    length = 5
+    env = BanditEnv(episode_length=length)
+    config = FAST.replace(num_envs=64, num_steps=3 * length, num_minibatches=1, stagger_starts=True,
+                          antithetic=antithetic)
+    state = init(config, env, env.default_params(), jax.random.PRNGKey(0))
+    new, traj = jax.jit(lambda s: collect(config, env, env.default_params(), s))(state)
+    done, cut = np.asarray(traj.done), np.asarray(traj.cut)
+    first_end = np.argmax(done, axis=0) + 1  # the first episode's length in each env
+    assert np.array_equal(first_end, np.asarray(state.cut_at))
+    assert set(first_end) == set(range(1, length + 1))  # every length, the full one included
+    # the cut is flagged where the first episode ends short; later episodes run their full length
+    assert np.array_equal(cut.sum(0), (first_end < length).astype(int))
+    for i in range(config.num_envs):
+        ends = np.flatnonzero(done[:, i]) + 1
+        assert np.all(np.diff(ends) == length)
+    # cut episodes do not count as finished ones
+    assert int(new.episodes) == int(done.sum() - cut.sum())
+    if antithetic:
+        np.testing.assert_array_equal(first_end[:32], first_end[32:])
+    # without the option no episode is cut
+    plain = init(config.replace(stagger_starts=False), env, env.default_params(), jax.random.PRNGKey(0))
+    _, traj = jax.jit(lambda s: collect(config.replace(stagger_starts=False), env, env.default_params(), s))(plain)
+    assert not np.asarray(traj.cut).any() and np.all(np.flatnonzero(np.asarray(traj.done)[:, 0]) + 1 == [5, 10, 15])

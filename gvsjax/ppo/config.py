@@ -71,6 +71,10 @@ class PPOConfig:
     clipped_log_prob: bool = _f(
         False, "log-probabilities of the actions the env plays (clipped to [-1, 1]): a sample beyond "
         "a bound counts with the mass beyond it (Fujita & Maeda 2018, clipped action policy gradient)")
+    stagger_starts: bool = _f(
+        False, "cut each env's first episode after a random number of steps in [1, episode_length], "
+        "so that every rollout holds all phases of the episode rather than the same phase in "
+        "every env (rsl_rl's random initial episode length; for episodes much longer than num_steps)")
     antithetic: bool = _f(
         False, "pair env i with env i + num_envs/2: same reset keys (targets) and mirrored "
         "action noise +-eps, kept in one minibatch; a pair's policy gradient then does not "

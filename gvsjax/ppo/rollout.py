@@ -38,6 +38,7 @@ class TrainState:
     update: jax.Array  # int32, number of updates done
     episodes: jax.Array  # int32, episodes finished (diverged ones included)
     episode_return: jax.Array  # (N,) float32, return so far of each running episode
+    cut_at: jax.Array  # (N,) int32, steps left before the running episode is cut (< 0: never)
 
 
 @struct.dataclass
@@ -49,7 +50,8 @@ class Rollout:
     log_prob: jax.Array  # (T, N)
     value: jax.Array  # (T, N)
     reward: jax.Array  # (T, N), 0 where invalid
-    done: jax.Array  # (T, N) bool, episode ended (True also where invalid)
+    done: jax.Array  # (T, N) bool, episode ended (True also where invalid or cut)
+    cut: jax.Array  # (T, N) bool, the episode was cut short by ``stagger_starts``
     valid: jax.Array  # (T, N) bool, physics did not diverge
     episode_return: jax.Array  # (T, N) return of the episode ending here, else 0
     info: dict[str, jax.Array]  # float (T, N) entries of the env's info
@@ -59,10 +61,10 @@ def env_keys(config: PPOConfig, key: jax.Array) -> jax.Array:
     """One key per env; with ``antithetic`` env i and i + num_envs/2 get the same key."""
     if not config.antithetic:
         return jax.random.split(key, config.num_envs)
-    return _pair_up(jax.random.split(key, config.num_envs // 2))
+    return pair_up(jax.random.split(key, config.num_envs // 2))
 
 
-def _pair_up(half: jax.Array) -> jax.Array:
+def pair_up(half: jax.Array) -> jax.Array:
     return jnp.concatenate([half, half])
 
 
@@ -81,7 +83,7 @@ def shardings(config: PPOConfig):
 
 
 # TrainState fields batched over num_envs; the others are the same on every device
-_ENV_FIELDS = ("env_state", "last_obs", "episode_return")
+_ENV_FIELDS = ("env_state", "last_obs", "episode_return", "cut_at")
 
 
 def place(config: PPOConfig, state: TrainState) -> TrainState:
@@ -112,17 +114,21 @@ def collect(
     n = config.num_envs
     envs, _ = shardings(config)
     # each device steps its own slice of the envs (no-op on one device)
-    env_step = sharding.split_batch(jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None)),
-                                    envs and envs.mesh, (0, 0, 0, None))
+    env_step = sharding.split_batch(jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None, 0)),
+                                    envs and envs.mesh, (0, 0, 0, None, 0))
 
     def one_step(carry, keys):  # keys: (n + 1,) = action key, one key per env
-        env_state, obs, episode_return = sharding.constrain(carry, envs)  # env axis split
+        env_state, obs, episode_return, cut_at = sharding.constrain(carry, envs)  # env axis split
         mean, log_std, value = apply_fn(state.params, obs)
         action = mean + jnp.exp(log_std) * _noise(config, keys[0], mean.shape, mean.dtype)
-        env_keys = _pair_up(keys[1:n // 2 + 1]) if config.antithetic else keys[1:]
-        next_obs, env_state, reward, done, info = env_step(env_keys, env_state, action, env_params)
+        env_keys = pair_up(keys[1:n // 2 + 1]) if config.antithetic else keys[1:]
+        cut = cut_at == 1
+        next_obs, env_state, reward, done, info = env_step(env_keys, env_state, action, env_params, cut)
         valid = jnp.asarray(info.get("valid", jnp.ones((n,), bool)), bool)
-        done = jnp.asarray(done, bool) | ~valid
+        ended = jnp.asarray(done, bool) | ~valid
+        cut = cut & ~ended
+        done = ended | cut
+        cut_at = jnp.where(done | (cut_at < 0), -1, cut_at - 1)
         reward = jnp.where(valid, reward, 0.0).astype(jnp.float32)
         episode_return = episode_return + reward
         floats = {
@@ -137,17 +143,18 @@ def collect(
             value=value,
             reward=reward,
             done=done,
+            cut=cut,
             valid=valid,
-            episode_return=jnp.where(done, episode_return, 0.0),
+            episode_return=jnp.where(ended, episode_return, 0.0),
             info=floats,
         )
-        carry = (env_state, next_obs.astype(jnp.float32), jnp.where(done, 0.0, episode_return))
+        carry = (env_state, next_obs.astype(jnp.float32), jnp.where(done, 0.0, episode_return), cut_at)
         return carry, step
 
     key, key_steps = jax.random.split(state.key)
-    (env_state, obs, episode_return), trajectory = jax.lax.scan(
+    (env_state, obs, episode_return, cut_at), trajectory = jax.lax.scan(
         one_step,
-        (state.env_state, state.last_obs, state.episode_return),
+        (state.env_state, state.last_obs, state.episode_return, state.cut_at),
         # all keys split up front: each random call inside the scan costs compile time
         jax.random.split(key_steps, (config.num_steps, n + 1)),
     )
@@ -157,13 +164,15 @@ def collect(
         last_obs=obs,
         key=key,
         episode_return=episode_return,
-        episodes=state.episodes + jnp.sum(trajectory.done, dtype=jnp.int32),
+        cut_at=cut_at,
+        episodes=state.episodes + jnp.sum(trajectory.done & ~trajectory.cut, dtype=jnp.int32),
     )
     return state, trajectory
 
 
 def episode_metrics(trajectory: Rollout) -> dict[str, jax.Array]:
-    """Means over episodes that *completed validly* in this rollout (NaN if none).
+    """Means over episodes that *completed validly* in this rollout (NaN if none; an
+    episode cut short by ``stagger_starts`` does not count).
 
     ``episode_reward`` is the undiscounted return; ``episode_<k>`` is scalar
     float info entry ``k`` at the episode's last step (e.g. ``episode_cost``;
@@ -171,7 +180,7 @@ def episode_metrics(trajectory: Rollout) -> dict[str, jax.Array]:
     ``episodes_completed`` counts those episodes, ``invalid_steps`` the
     diverged steps (each also ended an episode).
     """
-    completed = trajectory.done & trajectory.valid
+    completed = trajectory.done & trajectory.valid & ~trajectory.cut
     count = jnp.sum(completed)
 
     def mean_over_completed(x):

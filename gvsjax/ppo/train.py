@@ -39,7 +39,7 @@ from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import Batch, gae, ppo_loss
 from gvsjax.ppo.networks import make_network
-from gvsjax.ppo.rollout import TrainState, collect, env_keys, episode_metrics, shardings
+from gvsjax.ppo.rollout import TrainState, collect, env_keys, episode_metrics, pair_up, shardings
 
 PyTree = Any
 
@@ -108,6 +108,12 @@ def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainSta
     obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(
         env_keys(config, key_reset), env_params
     )
+    # the cut of each env's first episode: a step in [1, episode_length] (-1: none)
+    cut_at = jnp.full((config.num_envs,), -1, jnp.int32)
+    if config.stagger_starts:
+        cut_at = jax.random.randint(jax.random.fold_in(key_reset, 1), (config.num_envs,), 1,
+                                    env.episode_length + 1)
+        cut_at = pair_up(cut_at[:config.num_envs // 2]) if config.antithetic else cut_at
     return TrainState(
         params=params,
         opt_state=make_optimizer(config).init(params),
@@ -117,6 +123,7 @@ def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainSta
         update=jnp.zeros((), jnp.int32),
         episodes=jnp.zeros((), jnp.int32),
         episode_return=sharding.constrain(jnp.zeros((config.num_envs,), jnp.float32), envs),
+        cut_at=sharding.constrain(cut_at, envs),
     )
 
 

@@ -324,15 +324,17 @@ def auto_reset_step(env: Environment) -> Callable:
     """A ``step`` that starts a fresh episode whenever one ends.
 
     The returned observation is the first observation of the new episode when
-    ``done``; reward, done and info still describe the step that was taken.
+    ``done`` (or when ``cut``: the caller ends the episode early); reward, done and
+    info still describe the step that was taken.
     """
 
-    def step(key, state, action, params):
+    def step(key, state, action, params, cut=False):
         key_step, key_reset = jax.random.split(key)
         obs, state, reward, done, info = env.step(key_step, state, action, params)
         obs_reset, state_reset = env.reset(key_reset, params)
-        obs = jnp.where(done, obs_reset, obs)
-        state = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, state)
+        restart = done | cut
+        obs = jnp.where(restart, obs_reset, obs)
+        state = jax.tree.map(lambda r, s: jnp.where(restart, r, s), state_reset, state)
         return obs, state, reward, done, info
 
     return step

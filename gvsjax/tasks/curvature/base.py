@@ -58,6 +58,8 @@ class CurvatureTask(Environment):
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
     ppo_defaults = PPO_DEFAULTS
+    # append the tip-to-target vector to the observation (the benchmark's observation leaves it out)
+    relative_obs: ClassVar[bool] = False
     # training simulates in float32 (1.5x the steps/s, the same tip error at 2 substeps:
     # experiments/curvature_substeps.py); evaluation in float64
     train_sim_dtype = "float32"
@@ -97,7 +99,11 @@ class CurvatureTask(Environment):
         return jnp.concatenate(parts)
 
     def observe(self, state: EpisodeState, params) -> jax.Array:
-        return jnp.concatenate([self.arm_obs(state), self.task_obs(state, params)])
+        parts = [self.arm_obs(state), self.task_obs(state, params)]
+        if self.relative_obs:
+            error = state.target - state.node_p[-1]
+            parts.append(error[::2] if self.planar else error)
+        return jnp.concatenate(parts)
 
     def reset(self, key, params):
         """The arm straight and at rest, upright, with zero rest curvature; the task's target."""
