@@ -9,6 +9,8 @@ Trains ``--task`` with its PPO defaults plus the ``key=value`` overrides after `
 benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Writes
 ``benchmarks/curvature_ppo_study/<task>_<name>.json``: the command, the config, the timing,
 the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
+
+    python experiments/curvature_ppo_study.py --table     # the results so far, as a markdown table
 """
 
 from __future__ import annotations
@@ -46,7 +48,29 @@ def curve(run: Path) -> list[dict]:
                 for row in csv.DictReader(f)]
 
 
+def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
+    """A markdown table of every kept run: its variant, budget, wall time and evaluation."""
+    lines = ["| task | variant | seed | overrides | env steps | train s | discounted return | evaluation |",
+             "|---|---|---|---|---|---|---|---|"]
+    for path in sorted(folder.glob("*.json")):
+        d = json.loads(path.read_text())
+        e, t = d["eval"], d["timing"]
+        steps = t["episodes"] * make(d["task"]).episode_length
+        command = d["command"].split(" -- ")
+        overrides = command[1] if len(command) > 1 else ""
+        physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
+                    ("seed", "n_episodes", "valid_fraction", "gamma", "settle_s")}
+        shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
+        lines.append(f"| {d['task']} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
+                     f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} | "
+                     f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str]) -> int:
+    if argv == ["--table"]:
+        print(table())
+        return 0
     split = argv.index("--") if "--" in argv else len(argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--task", required=True)

@@ -2,6 +2,8 @@
 the orientation distance against independent computations; the control law; follow_target and ik_4d
 under jit and vmap for several steps; bad input."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -106,3 +108,27 @@ def test_a_wrong_arm_is_named():
     params = follow.default_params().replace(arm=ik.default_params().arm)  # a twist arm: 15 actions
     with pytest.raises(ValueError, match=r"follow_target\.arm\.robot"):
         follow.reset(jax.random.PRNGKey(0), params)
+
+
+def test_the_step_reports_the_benchmark_return_at_the_episode_end():
+    base = type(make("follow_target"))
+
+    class Short(base):  # a 4-step episode
+        episode_length = 4
+
+        def default_params(self):
+            return dataclasses.replace(super().default_params(), episode_steps=4)
+
+    env = Short()
+    params = env.default_params()
+    key = jax.random.PRNGKey(2)
+    obs, state = env.reset(key, params)
+    step = jax.jit(env.step)
+    rewards_, done = [], False
+    rng = np.random.default_rng(0)
+    while not done:
+        obs, state, reward, done, info = step(key, state, jnp.asarray(rng.uniform(-1, 1, 10)), params)
+        rewards_.append(float(reward))
+    assert len(rewards_) == 4
+    expected = control.discounted_returns(np.array([rewards_]))["average"][0]
+    np.testing.assert_allclose(float(info["benchmark_return"]), expected, rtol=1e-6)

@@ -44,6 +44,7 @@ class EpisodeState:
     obstacles: jax.Array  # (m, 2, 3) m, capsule ends (m = 0 without obstacles)
     deepest: jax.Array  # () m, the deepest penetration into an obstacle so far
     step: jax.Array  # () int32
+    score: jax.Array  # () sum_t r_t (1 - gamma^(t+1)) / (1 - gamma) so far: the benchmark's return, times T
 
 
 class CurvatureTask(Environment):
@@ -137,7 +138,11 @@ class CurvatureTask(Environment):
         new, reward, info = self.after(key, moved, params)
         reward = jnp.where(valid, reward, -10.0)  # the benchmark's penalty for a failed simulation
         done = (new.step >= self.episode_length) | ~valid
-        info = {**info, "valid": valid, "truncated": jnp.zeros((), bool), "depth": depth, "reward": reward}
+        score = new.score + reward * (1.0 - control.GAMMA ** new.step) / (1.0 - control.GAMMA)
+        new = dataclasses.replace(new, score=score)
+        # at an episode's last step: its discounted return averaged over the start steps (as evaluate's)
+        info = {**info, "valid": valid, "truncated": jnp.zeros((), bool), "depth": depth, "reward": reward,
+                "benchmark_return": score / self.episode_length}
         return self.observe(new, params), new, reward, done, info
 
     # ------------------------------------------------------------------ evaluation
@@ -201,7 +206,8 @@ def _blank(q: jax.Array, directions: int, fields: dict) -> dict:
     base = dict(q=q, qd=jnp.zeros_like(q), kappa=jnp.zeros((N_POINTS, directions)),
                 twist=jnp.zeros(N_POINTS), node_p=jnp.zeros((10, 3)), node_v=jnp.zeros((10, 3)),
                 tip_R=jnp.eye(3), target=jnp.zeros(3), target_velocity=jnp.zeros(3), goal=jnp.zeros(()),
-                obstacles=jnp.zeros((0, 2, 3)), deepest=jnp.zeros(()), step=jnp.zeros((), jnp.int32))
+                obstacles=jnp.zeros((0, 2, 3)), deepest=jnp.zeros(()), step=jnp.zeros((), jnp.int32),
+                score=jnp.zeros(()))
     return {**base, **fields}
 
 
