@@ -7,10 +7,11 @@
 Trains ``--task`` with its PPO defaults plus the ``key=value`` overrides after ``--`` (as
 ``python -m gvsjax.train``), with ``--relative`` appending the tip-to-target vector to the
 benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Writes
-``benchmarks/curvature_ppo_study/<task>_<name>.json``: the command, the config, the timing,
+``benchmarks/curvature_ppo_study/<task>_<name>_e<episodes>_s<seed>.json``: the command, the config, the timing,
 the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
 
     python experiments/curvature_ppo_study.py --table     # the results so far, as a markdown table
+    python experiments/curvature_ppo_study.py --figure    # figures/curvature_learning_curves.png
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -42,7 +44,8 @@ def relative_variant(task: str) -> str:
 
 
 def curve(run: Path) -> list[dict]:
-    keep = ("update", "episodes", "wall_s", "episode_reward", "episode_distance", "entropy", "approx_kl")
+    keep = ("update", "episodes", "wall_s", "episode_reward", "episode_benchmark_return", "episode_distance",
+            "entropy", "approx_kl")
     with open(run / "metrics.csv") as f:
         return [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")}
                 for row in csv.DictReader(f)]
@@ -50,8 +53,8 @@ def curve(run: Path) -> list[dict]:
 
 def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
     """A markdown table of every kept run: its variant, budget, wall time and evaluation."""
-    lines = ["| task | variant | seed | overrides | env steps | train s | discounted return | evaluation |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| task | variant | seed | overrides | env steps | train s (load) | eval episodes | discounted return "
+             "| evaluation |", "|---|---|---|---|---|---|---|---|---|"]
     for path in sorted(folder.glob("*.json")):
         d = json.loads(path.read_text())
         e, t = d["eval"], d["timing"]
@@ -61,15 +64,62 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
         physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
                     ("seed", "n_episodes", "valid_fraction", "gamma", "settle_s")}
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
+        load = "/".join(f"{x:.1f}" for x in d.get("load_average", [])) or "?"
         lines.append(f"| {d['task']} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
-                     f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} | "
+                     f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} ({load}) | "
+                     f"{e['n_episodes']} | "
                      f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
     return "\n".join(lines)
+
+
+def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
+           path: Path = ROOT / "figures" / "curvature_learning_curves.png") -> Path:
+    """Each task's training curves in the benchmark's metric (the stochastic policy's averaged discounted
+    return of the episodes finished in each update) against env steps and wall time, the deterministic
+    policy's evaluation at the end (a dot), and the published SAC's final value (a dashed line)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from gvsjax import plots
+
+    runs = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))]
+    tasks = sorted({d["task"] for d in runs})
+    fig, axes = plt.subplots(len(tasks), 2, figsize=(10, 3.2 * len(tasks)), squeeze=False)
+    for row, task in zip(axes, tasks):
+        env = make(task)
+        for d in (d for d in runs if d["task"] == task):
+            points = [c for c in d["curve"] if "episode_benchmark_return" in c]
+            label = f"{d['name']}{' +rel' if d['relative_obs'] else ''} s{d['seed']}"
+            final = d["eval"]["discounted_return_average"]["mean"]
+            total = d["timing"]["episodes"] * env.episode_length
+            for ax, x_of, end in ((row[0], lambda c: c["update"], total),
+                                  (row[1], lambda c: c["wall_s"] / 60, d["timing"]["train_s"] / 60)):
+                if points:
+                    x = np.array([x_of(c) for c in points], float)
+                    if ax is row[0]:
+                        x = x * d["config"]["num_envs"] * d["config"]["num_steps"]
+                    line, = ax.plot(x, [c["episode_benchmark_return"] for c in points], lw=1, label=label)
+                    ax.plot([end], [final], "o", color=line.get_color())
+                else:
+                    ax.plot([end], [final], "o", label=label + " (evaluation only)")
+        for ax, xlabel in zip(row, ("environment steps", "training wall time (min)")):
+            ax.axhline(env.published_return, ls="--", color="k", lw=1, label="published SAC, 5M steps")
+            ax.set(xlabel=xlabel, ylabel="discounted return (averaged)", title=task)
+            ax.grid(alpha=0.3)
+        row[0].legend(fontsize=7)
+    fig.tight_layout()
+    return plots.save(fig, path)
 
 
 def main(argv: list[str]) -> int:
     if argv == ["--table"]:
         print(table())
+        return 0
+    if argv == ["--figure"]:
+        print(figure())
         return 0
     split = argv.index("--") if "--" in argv else len(argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -83,7 +133,9 @@ def main(argv: list[str]) -> int:
     args = p.parse_args(argv[:split])
     overrides = argv[split + 1:]
     task = relative_variant(args.task) if args.relative else args.task
-    run = Path(args.runs) / f"{args.task}_{args.name}_s{args.seed}"
+    load_before = os.getloadavg()[1]
+    tag = f"{args.task}_{args.name}_e{args.episodes}_s{args.seed}"
+    run = Path(args.runs) / tag
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
                               f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false", *overrides])
     if code:
@@ -95,8 +147,10 @@ def main(argv: list[str]) -> int:
         "timing": json.loads((run / "timing.json").read_text()),
         "eval": json.loads((run / "eval.json").read_text()),
         "curve": curve(run),
+        # 5-minute load averages on a 2-core machine: > 2 means the wall times were shared
+        "load_average": [load_before, os.getloadavg()[1]],
     }
-    out = ROOT / "benchmarks" / "curvature_ppo_study" / f"{args.task}_{args.name}_s{args.seed}.json"
+    out = ROOT / "benchmarks" / "curvature_ppo_study" / f"{tag}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"wrote {out}")

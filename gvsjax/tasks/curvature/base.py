@@ -59,6 +59,8 @@ class CurvatureTask(Environment):
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
     ppo_defaults = PPO_DEFAULTS
+    # the published SAC's final discounted return (averaged over start steps), read from their results figure
+    published_return: ClassVar[float]
     # append the tip-to-target vector to the observation (the benchmark's observation leaves it out)
     relative_obs: ClassVar[bool] = False
     # training simulates in float32 (1.5x the steps/s, the same tip error at 2 substeps:

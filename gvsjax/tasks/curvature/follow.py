@@ -44,6 +44,7 @@ class FollowTarget(CurvatureTask):
     obs_size = 76
     action_size = 10
     episode_length = 501
+    published_return = 100.0
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 4_000}
 
     def default_params(self) -> FollowParams:

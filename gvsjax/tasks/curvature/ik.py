@@ -48,6 +48,7 @@ class IK4D(CurvatureTask):
     obs_size = 89
     action_size = 15
     episode_length = 101
+    published_return = 197.0
     twist = True
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
 

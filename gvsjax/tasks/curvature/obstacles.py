@@ -104,6 +104,7 @@ class Obstacles2D(_Obstacles):
     """The planar arm among six posts."""
 
     name = "obstacles_2d"
+    published_return = 40.0
     obs_size = 47
     action_size = 5
     directions = 1
@@ -124,6 +125,7 @@ class Obstacles3D(_Obstacles):
     """The 3D arm among eight random capsules."""
 
     name = "obstacles_3d"
+    published_return = 28.0
     obs_size = 121
     action_size = 10
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
