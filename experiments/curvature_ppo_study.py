@@ -58,7 +58,7 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
     for path in sorted(folder.glob("*.json")):
         d = json.loads(path.read_text())
         e, t = d["eval"], d["timing"]
-        steps = t["episodes"] * make(d["task"]).episode_length
+        steps = t["updates"] * d["config"]["num_envs"] * d["config"]["num_steps"]
         command = d["command"].split(" -- ")
         overrides = command[1] if len(command) > 1 else ""
         physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
@@ -94,7 +94,7 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
             points = [c for c in d["curve"] if "episode_benchmark_return" in c]
             label = f"{d['name']}{' +rel' if d['relative_obs'] else ''} s{d['seed']}"
             final = d["eval"]["discounted_return_average"]["mean"]
-            total = d["timing"]["episodes"] * env.episode_length
+            total = d["timing"]["updates"] * d["config"]["num_envs"] * d["config"]["num_steps"]
             for ax, x_of, end in ((row[0], lambda c: c["update"], total),
                                   (row[1], lambda c: c["wall_s"] / 60, d["timing"]["train_s"] / 60)):
                 if points:
