@@ -11,6 +11,7 @@ benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Write
 the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
 
     python experiments/curvature_ppo_study.py --table     # the results so far, as a markdown table
+    python experiments/curvature_ppo_study.py --docs      # that table into docs/tasks_benchmark.md
     python experiments/curvature_ppo_study.py --figure    # figures/curvature_learning_curves.png
 """
 
@@ -63,6 +64,8 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
         overrides = command[1] if len(command) > 1 else ""
         physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
                     ("seed", "n_episodes", "valid_fraction", "gamma", "settle_s")}
+        physical.update({f"{k} median": v["median"] for k, v in e.items() if isinstance(v, dict) and "median" in v
+                         and not k.startswith(("discounted", "return"))})
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
         load = "/".join(f"{x:.1f}" for x in d.get("load_average", [])) or "?"
         lines.append(f"| {d['task']} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
@@ -70,6 +73,17 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
                      f"{e['n_episodes']} | "
                      f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
     return "\n".join(lines)
+
+
+DOC = ROOT / "docs" / "tasks_benchmark.md"
+BEGIN, END = "<!-- curvature_ppo_study table: begin -->", "<!-- curvature_ppo_study table: end -->"
+
+
+def docs_with_table(text: str) -> str:
+    """``text`` with the part between the markers replaced by ``table()``."""
+    head, rest = text.split(BEGIN)
+    _, tail = rest.split(END)
+    return f"{head}{BEGIN}\n{table()}\n{END}{tail}"
 
 
 def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
@@ -117,6 +131,10 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
 def main(argv: list[str]) -> int:
     if argv == ["--table"]:
         print(table())
+        return 0
+    if argv == ["--docs"]:
+        DOC.write_text(docs_with_table(DOC.read_text()))
+        print(f"wrote the table into {DOC}")
         return 0
     if argv == ["--figure"]:
         print(figure())
