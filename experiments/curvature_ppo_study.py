@@ -148,6 +148,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--eval", type=int, default=1000, help="held-out evaluation episodes")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--runs", default="runs/curvature_ppo_study", help="folder of the training runs")
+    p.add_argument("--resume", action="store_true", help="continue the run from its last checkpoint")
     args = p.parse_args(argv[:split])
     overrides = argv[split + 1:]
     task = relative_variant(args.task) if args.relative else args.task
@@ -155,7 +156,8 @@ def main(argv: list[str]) -> int:
     tag = f"{args.task}_{args.name}_e{args.episodes}_s{args.seed}"
     run = Path(args.runs) / tag
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
-                              f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false", *overrides])
+                              f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false",
+                              *(["resume=true"] if args.resume else []), *overrides])
     if code:
         return code
     result = {
