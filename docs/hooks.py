@@ -31,8 +31,10 @@ DOCS = ROOT / "docs"
 # repository folders served under the same name
 MOUNTED = {"figures": ("*",), "notebooks": ("*.ipynb",), "benchmarks": ("*.json", "*.csv", "README.md")}
 LINK = re.compile(r"(!?\[[^\]]*\])\(([^)\s]+)\)")
+RESULTS = re.compile(r"<!-- results: (\w+) -->")
 _pkg = None
 _generated: dict[str, str] = {}
+_tables: dict[str, str] = {}
 
 
 def _griffe():
@@ -52,6 +54,8 @@ def on_files(files: Files, config) -> Files:
     _generated.clear()
     _generated.update(api_reference.pages(_griffe()))
     _generated.update(gen_results.pages(ROOT))
+    _tables.clear()
+    _tables.update(gen_results.tables(ROOT))
     for uri, content in _generated.items():
         files.append(File.generated(config, uri, content=content))
     return files
@@ -93,11 +97,23 @@ def rewrite_links(markdown: str, src_real: Path, src_uri: str) -> str:
     return LINK.sub(fix, markdown)
 
 
+def insert_tables(markdown: str, where: str) -> str:
+    """Put each generated table where its ``<!-- results: NAME -->`` line is."""
+
+    def table(m: re.Match) -> str:
+        if m.group(1) not in _tables:
+            log.warning(f"{where}: no generated table named {m.group(1)!r} (docs/gen_results.py)")
+            return m.group(0)
+        return _tables[m.group(1)]
+
+    return RESULTS.sub(table, markdown)
+
+
 def on_page_markdown(markdown: str, page, config, files) -> str:
     f = page.file
     if f.src_uri in _generated or not f.abs_src_path:
         return markdown
-    return rewrite_links(markdown, Path(f.abs_src_path), f.src_uri)
+    return insert_tables(rewrite_links(markdown, Path(f.abs_src_path), f.src_uri), f.src_uri)
 
 
 def on_post_build(config) -> None:
