@@ -30,7 +30,8 @@ PAGES = [
 def load(search_path: Path = ROOT):
     import griffe
 
-    return griffe.load("gvsjax", search_paths=[str(search_path)], resolve_aliases=True, resolve_external=False)
+    # by path: a package name would be looked up in the working directory first
+    return griffe.load(str(search_path / "gvsjax"), resolve_aliases=True, resolve_external=False)
 
 
 def _module(pkg, name: str):

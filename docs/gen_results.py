@@ -144,15 +144,15 @@ def basketball_table(root: Path) -> str:
 
 
 def headline(root: Path, task: str) -> str:
-    """One result for the task's default: the first default run's first columns."""
+    """One result of the task's default (seed 0): the eval file's ``headline`` filled from its first
+    default run."""
     if task == "basketball":
         e = basketball_rows(root)[0][1]
         return (f"{num(100 * e['success_rate_10cm'], 1, '%')} within 10 cm, "
-                f"{num(100 * e['within_1cm'], 1, '%')} within 1 cm (seed 0)")
+                f"{num(100 * e['within_1cm'], 1, '%')} within 1 cm")
     d = eval_file(root, task)
     run = next(r for r in d["runs"] if r["group"] == "default")
-    parts = [f"{c['label']} {cell(run, c)}" for c in d["columns"][:2] if cell(run, c)]
-    return "; ".join(parts) + f" ({run['run']})"
+    return d["headline"].format(**run)
 
 
 # ---------------------------------------------------------------- studies
