@@ -42,6 +42,16 @@ def _target(obj):
     return obj.final_target if obj.is_alias else obj
 
 
+def resolve(pkg, package: str, name: str):
+    """(object, identifier for mkdocstrings) of ``package.name``. A function named like the submodule
+    that defines it (``gvsjax.curvature_arm``) is, at run time, the function: take it from the module."""
+    obj = _target(_module(pkg, package)[name])
+    if obj.is_module and name in obj.members:
+        obj = _target(obj[name])
+        return obj, obj.path
+    return obj, f"{package}.{name}"
+
+
 def public_names(pkg, package: str) -> list[str]:
     """The names in ``package.__all__``, in their order there."""
     exports = _module(pkg, package).exports
@@ -55,10 +65,9 @@ def undocumented(pkg=None) -> list[str]:
     pkg = load() if pkg is None else pkg
     bad = []
     for _, package, _, _ in PAGES:
-        mod = _module(pkg, package)
         for name in public_names(pkg, package):
             try:
-                obj = _target(mod[name])
+                obj, _ = resolve(pkg, package, name)
             except Exception as err:  # an alias to nothing: a name in __all__ that is not defined
                 bad.append(f"{package}.{name} ({type(err).__name__})")
                 continue
@@ -82,16 +91,16 @@ def pages(pkg=None) -> dict[str, str]:
              "Units are SI unless a docstring says otherwise; shapes are given as `(n,)`, `(n, 6)` and so on.",
              ""]
     for page, package, title, about in PAGES:
-        mod = _module(pkg, package)
         names = public_names(pkg, package)
         index.append(f"- [{title}]({Path(page).name}): {about} ({len(names)} names)")
         groups: dict[str, list[str]] = {}
         for name in names:
             try:
-                where = _target(mod[name]).parent.path
+                obj, ident = resolve(pkg, package, name)
+                where = obj.parent.path
             except Exception:
-                where = package
-            groups.setdefault(where, []).append(name)
+                where, ident = package, f"{package}.{name}"
+            groups.setdefault(where, []).append(ident)
         lines = [f"# {title}", "", about, ""]
         lines.append("Contents: " + " · ".join(f"[`{g}`](#{g.replace('.', '')})" for g in groups))
         lines.append("")
@@ -100,8 +109,8 @@ def pages(pkg=None) -> dict[str, str]:
             heading = _heading(_module(pkg, where)) if where.startswith("gvsjax") else ""
             if heading:
                 lines += [heading, ""]
-            for name in group:
-                lines += [f"::: {package}.{name}", ""]
+            for ident in group:
+                lines += [f"::: {ident}", ""]
         out[page] = "\n".join(lines)
     out["api/index.md"] = "\n".join(index) + "\n"
     return out
@@ -110,4 +119,4 @@ def pages(pkg=None) -> dict[str, str]:
 def anchors(pkg=None) -> dict[str, list[str]]:
     """{page path: the HTML ids its public names must have} (mkdocstrings ids are the dotted paths)."""
     pkg = load() if pkg is None else pkg
-    return {page: [f"{package}.{n}" for n in public_names(pkg, package)] for page, package, _, _ in PAGES}
+    return {page: [resolve(pkg, package, n)[1] for n in public_names(pkg, package)] for page, package, _, _ in PAGES}

@@ -70,7 +70,8 @@ def table(header: list[str], rows: list[list[str]]) -> str:
 
 def commands(runs: list[dict]) -> str:
     """The commands that make a table's rows, as a code block (``# the run`` after each)."""
-    lines = [f"{r['command']}    # {r['run']}" for r in runs if r.get("command", "").startswith("python")]
+    lines = [f"{r['command']}    # {r['run'].replace('`', '')}"
+             for r in runs if r.get("command", "").startswith("python")]
     return "\n".join(["```bash", *lines, "```"]) if lines else ""
 
 
