@@ -147,3 +147,33 @@ def test_the_readme_simulator_block_runs():
     exec(compile(block, "README.md", "exec"), scope)
     assert scope["tips"].shape == (1024, 3)
     assert abs(float(scope["jax"].grad(scope["tip_x"])(5e6))) > 0
+
+
+def _commands() -> list[tuple[str, str]]:
+    """(where, command) for every ``python ...`` command line in the docs, the README and the eval files."""
+    found = []
+    texts = [(p, p.read_text()) for p in [ROOT / "README.md", *DOCS.rglob("*.md")]]
+    texts += [(p, p.read_text()) for p in (ROOT / "benchmarks").glob("eval_*.json")]
+    texts.append((DOCS / "gen_results.py", "\n".join(gen_results.tables(ROOT).values())))
+    for path, text in texts:
+        for m in re.finditer(r"python3? (?:-m [\w.]+|[\w/]+\.py)[^\n`\"|#]*", text):
+            found.append((path.name, m.group(0)))
+    return found
+
+
+def test_every_documented_command_names_what_exists():
+    """Scripts and modules exist, and a ``task=`` names a registered task (or its variant)."""
+    from gvsjax.tasks import registered
+
+    tasks = set(registered())
+    commands = _commands()
+    assert len(commands) > 50
+    for where, cmd in commands:
+        script = re.match(r"python3? ([\w/]+\.py)", cmd)
+        if script and not script.group(1).startswith("-"):
+            assert (ROOT / script.group(1)).exists() or script.group(1) == "docs/gen_results.py", (where, cmd)
+        module = re.match(r"python3? -m ([\w.]+)", cmd)
+        if module and module.group(1).startswith("gvsjax"):
+            assert (ROOT / (module.group(1).replace(".", "/") + ".py")).exists(), (where, cmd)
+        for task in re.findall(r"\btask=(\w+)", cmd):
+            assert task in tasks or task in ("NAME", "bend"), (where, cmd)
