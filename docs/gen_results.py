@@ -309,6 +309,44 @@ def follow_target_runs(root: Path) -> str:
             + f"\n\n{d['note']}. Data: `benchmarks/follow_target_first_runs.json`.")
 
 
+def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
+    """The episodes at which ``ok`` first holds, and from which it holds at every later evaluation."""
+    first = next((c["episodes"] for c in curve if ok(c)), None)
+    held = next((c["episodes"] for i, c in enumerate(curve) if all(ok(x) for x in curve[i:])), None)
+    return first, held
+
+
+def time_to_quality(root: Path) -> str:
+    def k(n):
+        return "not reached" if n is None else f"{round(n / 1000)}k"
+
+    def paper(c):
+        return c["success_rate_10cm"] >= 1.0 and c["within_1cm"] >= 0.55
+
+    def p93(c):
+        return c["within_1cm"] >= 0.93
+
+    def cells(curve):
+        first, held = _first_and_held(curve, paper)
+        end = curve[-1]
+        return [f"{k(first)} ({'not held' if held is None else k(held)})", k(_first_and_held(curve, p93)[0]),
+                f"{100 * end['success_rate_10cm']:.1f}% / {100 * end['within_1cm']:.1f}%"]
+
+    trunk = load(root, "time_to_quality_paper_layers.json")["runs"]
+    rows = [[seed, *cells(load(root, f)["curve"]), *cells(trunk[seed]["curve"])]
+            for seed, f in BASKETBALL_FILES[:5]]
+    return (table(["seed", "paper's level (100% within 10 cm, >= 55% within 1 cm): first (held from)",
+                   "93% within 1 cm, first", "end: within 10 / 1 cm", "paper's trunk: paper's level",
+                   "paper's trunk: 93%", "paper's trunk: end"], rows)
+            + "\n\nEpisodes of the default program (trunk 128-64-32) and of the paper's trunk (128-32-16) at "
+            "which each level is first reached on the 1000 held-out targets. "
+            "Data: `benchmarks/time_to_quality*.json`."
+            "\n\n```bash\n"
+            "python experiments/time_to_quality.py --json benchmarks/time_to_quality.json            # seed 0\n"
+            "python experiments/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   # seeds 1-4\n"
+            "python experiments/time_to_quality.py seed=0 shared_hidden=128,32,16    # the paper's trunk\n```")
+
+
 STUDIES = {
     "track3d_basis": track3d_basis,
     "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/track3d_substeps.py "
@@ -325,6 +363,7 @@ STUDIES = {
     "env_throughput": env_throughput,
     "sim": sim_throughput,
     "follow_target_first_runs": follow_target_runs,
+    "time_to_quality": time_to_quality,
 }
 
 
