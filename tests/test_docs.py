@@ -177,3 +177,11 @@ def test_every_documented_command_names_what_exists():
             assert (ROOT / (module.group(1).replace(".", "/") + ".py")).exists(), (where, cmd)
         for task in re.findall(r"\btask=(\w+)", cmd):
             assert task in tasks or task in ("NAME", "bend"), (where, cmd)
+
+
+def test_readme_results_are_the_generated_ones():
+    """Each task's cell in the README is its results page's headline, from the same committed file."""
+    readme = (ROOT / "README.md").read_text()
+    for task in ["basketball", "pickplace", "throw3d", "track3d", "reach_pose", "reach_obstacles", "balance"]:
+        row = next(line for line in readme.splitlines() if line.startswith(f"| [`{task}`]"))
+        assert row.rstrip(" |").endswith(gen_results.headline(ROOT, task)), (task, row)
