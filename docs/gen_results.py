@@ -347,6 +347,24 @@ def time_to_quality(root: Path) -> str:
             "python experiments/time_to_quality.py seed=0 shared_hidden=128,32,16    # the paper's trunk\n```")
 
 
+def tendon_arm(root: Path) -> str:
+    d = load(root, "tendon_arm.json")
+    cases: dict[str, dict[int, dict]] = {}
+    for r in d["rows"]:
+        cases.setdefault(r["case"], {})[r["batch"]] = r
+    rows = [[case, by[1]["dofs"], f"{by[1]['compile_s']:.1f} s / {by[1024]['compile_s']:.1f} s",
+             num(by[1]["steps_per_s"], 0), num(by[1024]["steps_per_s"], 0)] for case, by in cases.items()]
+    st = d["statics"]
+    return (table(["case", "DoFs", "compile, batch 1 / 1024", "arm-steps/s, batch 1", "arm-steps/s, batch 1024"],
+                  rows)
+            + f"\n\n`{d['integrator']}` at dt = {1000 * d['dt']:g} ms for {d['duration']:g} s, float64. Statics: "
+            f"`equilibrium` compiles in {st['equilibrium']['compile_s']:.0f} s and solves in "
+            f"{1000 * st['equilibrium']['solve_s']:.0f} ms, `inverse_statics` in "
+            f"{st['inverse_statics']['compile_s']:.0f} s and {1000 * st['inverse_statics']['solve_s']:.0f} ms. "
+            "Data: `benchmarks/tendon_arm.json`.\n\n"
+            "```bash\npython experiments/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
+
+
 STUDIES = {
     "track3d_basis": track3d_basis,
     "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/track3d_substeps.py "
@@ -364,6 +382,7 @@ STUDIES = {
     "sim": sim_throughput,
     "follow_target_first_runs": follow_target_runs,
     "time_to_quality": time_to_quality,
+    "tendon_arm": tendon_arm,
 }
 
 
