@@ -31,7 +31,8 @@ DOCS = ROOT / "docs"
 # repository folders served under the same name
 MOUNTED = {"figures": ("*",), "notebooks": ("*.ipynb",), "benchmarks": ("*.json", "*.csv", "README.md")}
 LINK = re.compile(r"(!?\[[^\]]*\])\(([^)\s]+)\)")
-RESULTS = re.compile(r"<!-- results: (\w+) -->")
+# a generated table's place, and the line GitHub readers see instead of it (dropped from the site)
+RESULTS = re.compile(r"<!-- results: (\w+) -->(\n> Generated table:[^\n]*)?")
 _pkg = None
 _generated: dict[str, str] = {}
 _tables: dict[str, str] = {}
