@@ -408,7 +408,9 @@ def pages(root: Path = ROOT) -> dict[str, str]:
     t = tables(root)
     overview = ["# Results", "",
                 "Every number on these pages is read from the committed files in `benchmarks/` when the site "
-                "is built (`docs/gen_results.py`); none is typed by hand.", "",
+                "is built (`docs/gen_results.py`); none is typed by hand. A new run of a task is a new entry of "
+                "its `benchmarks/eval_<task>.json` ([adding a task](../adding_a_task.md#its-page-and-its-results)).",
+                "",
                 "## The tasks' defaults", ""]
     rows = [[f"[`{task}`](../{page})", headline(root, task)] for task, page in TASK_PAGES.items()]
     rows.append(["[`follow_target`, `ik_4d`, `obstacles_2d`, `obstacles_3d`](../tasks_benchmark.md)",
