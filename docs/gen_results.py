@@ -400,6 +400,9 @@ def tables(root: Path = ROOT) -> dict[str, str]:
             out[f"{task}_variants"] = eval_table(d, ("variant",))
     for name, make in STUDIES.items():
         out[name] = make(root)
+    # for pages at the top of docs/ (links relative to it)
+    out["task_headlines"] = table(["task", "default run (seed 0, 1000 held-out episodes)"],
+                                  [[f"[`{task}`]({page})", headline(root, task)] for task, page in TASK_PAGES.items()])
     return out
 
 
