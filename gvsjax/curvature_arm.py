@@ -54,6 +54,7 @@ CURVATURE_ARM = dict(
     planar=False,
     twist=False,
 )
+"""The benchmark arm of Choi & Tong: ``curvature_arm``'s default keywords (SI units)."""
 
 # At rest the rod's local x axis points along world +z, local y along +x and z along +y: bending about
 # the local z axis (``bend_z``) moves the tip along world x, about y along world -y.

@@ -43,6 +43,7 @@ PAPER_ARM = dict(
     tendon_offset=None,  # m, straight tendon at this offset (local +y); None = no tendon
     base="prescribed",  # the base joint: "prescribed" (position control) or "torque" (a joint_force input)
 )
+"""The paper's arm: ``paper_arm``'s default keywords (SI units); ``paper_arm(**overrides)`` replaces any."""
 
 
 def paper_arm(**overrides: Any) -> Robot:
@@ -148,6 +149,7 @@ TENDON_ARM = dict(
     helix_turns=0.5,  # turns of the fourth tendon about the midline
     tip_mass=0.0,  # kg, a payload at the tip (also weighed by gravity)
 )
+"""The upright 3D tendon arm of the closed-loop tasks: ``tendon_arm``'s default keywords (SI units)."""
 
 
 def tendon_arm(**overrides: Any) -> Robot:
@@ -230,6 +232,7 @@ SOFT_ARM = dict(
     tendon_offset=0.04,  # m from the midline
     tendon_ends=(1.0, 0.5),  # X where each group of four tendons is anchored (from the base)
 )
+"""The upright 3D soft arm driven by groups of four tendons: ``soft_arm``'s default keywords (SI units)."""
 
 # At rest the rod's local x axis points along world +z, local y along +x and z along +y.
 UPRIGHT = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
@@ -306,6 +309,7 @@ PAPER_ARM_3D = dict(
     shear_order=-1,  # -1: unshearable
     recursion="unrolled",  # see SoftLink.recursion
 )
+"""The paper's arm in 3D: ``paper_arm_3d``'s default keywords (SI units)."""
 
 
 def paper_arm_3d(**overrides: Any) -> Robot:

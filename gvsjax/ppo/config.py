@@ -120,6 +120,7 @@ class PPOConfig:
 
 
 FIELD_DOCS: dict[str, str] = {f.name: f.metadata["help"] for f in dataclasses.fields(PPOConfig)}
+"""Each ``PPOConfig`` field's help text, by field name (what ``--help`` prints)."""
 
 # Overrides approximating MATLAB rlPPOAgentOptions as the paper used them (its toolbox
 # defaults where the paper is silent); use as ``PPOConfig().replace(**MATLAB_LIKE)``.
@@ -131,6 +132,7 @@ MATLAB_LIKE: dict[str, Any] = dict(
     std_mode="network",
     network="separate",
 )
+"""Overrides approximating MATLAB's ``rlPPOAgent`` as the paper used it: ``PPOConfig().replace(**MATLAB_LIKE)``."""
 
 
 def _positive_int(v: Any) -> bool:
@@ -239,6 +241,7 @@ PRESETS: dict[str, dict[str, Any]] = {
                   finetune_clip_eps=0.02, finetune_fraction=0.3, anneal_lr=False),
     "matlab": {**MATLAB_LIKE, "learning_rate": 1e-4, "clip_eps": 0.1},
 }
+"""Named groups of ``PPOConfig`` overrides, chosen by ``preset=NAME`` on the command line."""
 
 
 def build_config(task_defaults: dict[str, Any], preset: str, overrides: dict[str, Any]) -> PPOConfig:

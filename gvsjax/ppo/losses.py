@@ -60,8 +60,10 @@ def gae(
     """Generalised advantage estimation over a time-major rollout.
 
     Args:
-        rewards, values, dones: ``(T, N)``; ``dones[t]`` is True when step ``t``
-            ended its episode (then nothing is bootstrapped past it).
+        rewards: ``(T, N)`` rewards of each step.
+        values: ``(T, N)`` the critic's values of each step's observation.
+        dones: ``(T, N)``; ``dones[t]`` is True when step ``t`` ended its
+            episode (then nothing is bootstrapped past it).
         last_value: ``(N,)`` value of the observation after step ``T-1``.
 
     Returns:

@@ -8,7 +8,8 @@ from gvsjax.tasks.base import Box, Environment, EvalResult, auto_reset_step, mak
 __all__ = ["DEFAULT_TASK", "Box", "Environment", "EvalResult", "auto_reset_step", "make", "register",
            "registered"]
 
-DEFAULT_TASK = "basketball"  # what the command line and Gymnasium run when no task is named
+DEFAULT_TASK = "basketball"
+"""The task the command line and Gymnasium run when none is named."""
 
 register("basketball", "gvsjax.tasks.basketball:Basketball")
 register("pickplace", "gvsjax.tasks.pickplace:PickPlace")

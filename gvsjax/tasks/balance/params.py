@@ -20,7 +20,7 @@ class BalanceParams:
     ``torque_max``: 20 N m is 52% of the m g L / 2 = 38.5 N m that holds the straight arm
     horizontal, so the arm cannot be lifted directly (a slow lift stalls 31 degrees from
     hanging, where m g L / 2 sin(theta) = 20 N m) and the policy must pump energy into a swing;
-    upright it still rights a tilt of up to 31 degrees (docs/tasks_3d.md, "balance").
+    upright it still rights a tilt of up to 31 degrees (docs/tasks/balance.md).
     """
 
     arm: Robot = struct.field(default_factory=torque_arm)

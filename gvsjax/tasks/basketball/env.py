@@ -71,7 +71,7 @@ class Basketball(Environment):
     # shrink to cm precision. The last 0.1-0.5% of targets (sparse top corners, 1 cm needs delta
     # to 3e-4) need mirrored pairs (the critic's error leaves the gradient), a KL-adaptive rate
     # (the mean otherwise jumps by several stds per update), clipped-action log-probs (the
-    # top-right corner needs T = 0.5 s, the box's edge) and 1.2M episodes (docs/tasks.md). The
+    # top-right corner needs T = 0.5 s, the box's edge) and 1.2M episodes (docs/tasks/basketball.md). The
     # trunk is wider than the paper's 128-32-16: the steep map to the fast top-court throws needs
     # the width for centimetre precision on every seed, at ~1.1x the cost of an update.
     ppo_defaults = dict(

@@ -50,7 +50,7 @@ GAP_SCALE = 0.05  # m
 SAVE_EVERY = 2  # ars443 steps between the penetration checks (12.5 ms: shorter than a bar's contact)
 YAW_OBS = slice(30, 32)  # where (cos, sin) of the yaw sit in the observation
 LEFT_OBS = 43  # where the fraction of the episode left sits
-RAMP_S = 1.5  # s, the open-loop ramp baseline's rise: slow enough to pass the bars (docs/tasks_3d.md)
+RAMP_S = 1.5  # s, the open-loop ramp baseline's rise: slow enough to pass the bars (docs/tasks/reach_obstacles.md)
 
 
 @struct.dataclass
@@ -172,7 +172,7 @@ class ReachObstacles(Environment):
     episode_length = 30
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
-    # 24k episodes: what trains in 15 minutes on 2 cores (40k reach further: docs/tasks_3d.md)
+    # 24k episodes: what trains in 15 minutes on 2 cores (40k reach further: docs/tasks/reach_obstacles.md)
     ppo_defaults = {**arm3d.PPO_DEFAULTS, "num_envs": 256, "total_episodes": 24_000}
     train_sim_dtype = "float32"  # the contact step is the whole cost; evaluation stays float64
     planar = False  # True: two actions, the two groups' bending in the x-z plane

@@ -1,0 +1,452 @@
+"""The results tables and pages, made from the committed JSON in ``benchmarks/``: no number is typed twice.
+
+``tables(root)`` returns ``{name: markdown}``: one table per result. A page shows one by holding the
+line ``<!-- results: NAME -->`` (the mkdocs hook, ``docs/hooks.py``, puts the table there; GitHub shows
+nothing). ``pages(root)`` returns the generated Results section: an overview of every task's default
+run, a page per task with every recorded run and its command, and an index of the data files.
+
+Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs, their training, the
+command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
+JSON (``track3d_basis``, ``*_substeps``, ``reach_obstacles_steps``, ``throw3d_convergence``,
+``muscle_workspace``, ``curvature_arm_basis``, ``env_throughput``, ``sim``, ``follow_target_first_runs``).
+
+Run it alone to print every table: ``python docs/gen_results.py [NAME ...]``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TASK_PAGES = {  # task -> its page (docs-relative); the eval files of these tasks are required
+    "basketball": "tasks/basketball.md", "pickplace": "tasks/pickplace.md", "throw3d": "tasks/throw3d.md",
+    "track3d": "tasks/track3d.md", "track3d_muscle": "tasks/track3d.md", "reach_pose": "tasks/reach_pose.md",
+    "reach_pose_muscle": "tasks/reach_pose.md", "reach_obstacles": "tasks/reach_obstacles.md",
+    "reach_obstacles_2d": "tasks/reach_obstacles.md", "balance": "tasks/balance.md",
+}
+GROUPS = {"default": "the default", "longer": "longer training", "reference": "references and baselines",
+          "variant": "variants (studies)"}
+
+
+# ---------------------------------------------------------------- formatting
+
+def num(x, digits: int | None = None, unit: str = "") -> str:
+    """A number as the table shows it: as stored (``digits`` None) or rounded; inf/nan as words."""
+    if x is None:
+        return ""
+    if isinstance(x, str):
+        return x
+    if isinstance(x, float) and math.isinf(x):
+        return "diverges"
+    if isinstance(x, float) and math.isnan(x):
+        return "-"
+    if digits is None:
+        s = str(x)
+    elif digits == 0:
+        s = f"{round(x):,}"
+    else:
+        s = f"{x:.{digits}f}"
+    return f"{s} {unit}".strip() if unit and unit != "%" else (s + "%" if unit == "%" else s)
+
+
+def sig(x, n: int = 2) -> str:
+    """x to n significant digits, without exponent (0.0012, 13, 1,014)."""
+    if x is None or (isinstance(x, float) and (math.isinf(x) or math.isnan(x))):
+        return num(x)
+    if x == 0:
+        return "0"
+    digits = max(0, n - 1 - int(math.floor(math.log10(abs(x)))))
+    return f"{x:,.{digits}f}" if digits == 0 else f"{x:.{digits}f}"
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def commands(runs: list[dict]) -> str:
+    """The commands that make a table's rows, as a code block (``# the run`` after each)."""
+    lines = [f"{r['command']}    # {r['run'].replace('`', '')}"
+             for r in runs if r.get("command", "").startswith("python")]
+    return "\n".join(["```bash", *lines, "```"]) if lines else ""
+
+
+def load(root: Path, name: str):
+    return json.loads((root / "benchmarks" / name).read_text())
+
+
+# ---------------------------------------------------------------- the tasks' evaluations
+
+def eval_file(root: Path, task: str) -> dict:
+    return load(root, f"eval_{task}.json")
+
+
+def cell(run: dict, column: dict) -> str:
+    values = [run.get(k) for k in column["keys"]]
+    if all(v is None for v in values):
+        return ""
+    unit = column.get("unit", "")
+    parts = [num(v) for v in values]
+    text = " / ".join(p if p else "-" for p in parts)
+    return text + ("%" if unit == "%" else f" {unit}" if unit else "")
+
+
+def eval_table(d: dict, groups: tuple[str, ...], with_commands: bool = True) -> str:
+    """The runs of ``groups`` from an ``eval_<task>.json``: run, training, then its columns."""
+    runs = [r for r in d["runs"] if r["group"] in groups]
+    header = ["run", "training"] + [c["label"] for c in d["columns"]]
+    rows = [[r["run"], r.get("training", "")] + [cell(r, c) for c in d["columns"]] for r in runs]
+    out = table(header, rows)
+    out += f"\n\nEvaluation: {d['evaluation']}. Data: `benchmarks/eval_{d['task']}.json`."
+    if with_commands and commands(runs):
+        out += "\n\n" + commands(runs)
+    return out
+
+
+BASKETBALL_FILES = [("0", "time_to_quality.json"), ("1", "time_to_quality_seed1.json"),
+                    ("2", "time_to_quality_seed2.json"), ("3", "time_to_quality_seed3.json"),
+                    ("4", "time_to_quality_seed4.json"),
+                    ("0, `sim_dtype=float64`, the paper's trunk (another host)", "time_to_quality_float64.json")]
+
+
+def basketball_rows(root: Path) -> list[tuple[str, dict]]:
+    """(seed label, the final evaluation) of each committed basketball run."""
+    return [(label, load(root, f)["curve"][-1]) for label, f in BASKETBALL_FILES]
+
+
+def basketball_table(root: Path) -> str:
+    rows = []
+    for label, e in basketball_rows(root):
+        rows.append([label, f"{e['episodes'] / 1e6:.1f}M", num(100 * e["success_rate_10cm"], 1, "%"),
+                     num(100 * e["within_1cm"], 1, "%"), num(1000 * e["median_m"], 1, "mm"),
+                     num(100 * e["p95_m"], 2, "cm"), num(100 * e["max_m"], 2, "cm")])
+    paper = [r["curve"][-1] for r in load(root, "time_to_quality_paper_layers.json")["runs"].values()]
+    lo_hi = [(min(e[k] for e in paper), max(e[k] for e in paper)) for k in ("success_rate_10cm", "within_1cm")]
+    rows.append([f"0-{len(paper) - 1}, the paper's trunk (`shared_hidden=128,32,16`), the same host",
+                 f"{paper[0]['episodes'] / 1e6:.1f}M"]
+                + [f"{num(100 * lo, 1)}-{num(100 * hi, 1, '%')}" for lo, hi in lo_hi] + ["", "", ""])
+    for r in eval_file(root, "basketball")["runs"]:
+        rows.append([r["run"], "", num(r["within_10cm_pct"], None, "%"), num(r["within_1cm_pct"], None, "%"),
+                     "", "", ""])
+    return (table(["seed", "episodes", "< 10 cm", "< 1 cm", "median", "p95", "max"], rows)
+            + "\n\nEvaluation: the 1000 held-out targets of `python -m gvsjax.evaluate` (seed 1,000,003 + seed), "
+            "float64; the final evaluation of `experiments/time_to_quality.py`, the default "
+            "`python -m gvsjax.train task=basketball` program. "
+            "Data: `benchmarks/time_to_quality*.json`, `benchmarks/eval_basketball.json`.\n\n"
+            "```bash\npython experiments/time_to_quality.py --json benchmarks/time_to_quality.json          # seed 0\n"
+            "python experiments/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   "
+            "# and seeds 2-4\npython experiments/time_to_quality.py seed=0 shared_hidden=128,32,16"
+            "                      # the paper's trunk\npython experiments/baseline_basketball.py runs/a 1000 1000003"
+            "          # the baseline\n```")
+
+
+def headline(root: Path, task: str) -> str:
+    """One result of the task's default (seed 0): the eval file's ``headline`` filled from its first
+    default run."""
+    if task == "basketball":
+        e = basketball_rows(root)[0][1]
+        return (f"{num(100 * e['success_rate_10cm'], 1, '%')} within 10 cm, "
+                f"{num(100 * e['within_1cm'], 1, '%')} within 1 cm")
+    d = eval_file(root, task)
+    run = next(r for r in d["runs"] if r["group"] == "default")
+    return d["headline"].format(**run)
+
+
+# ---------------------------------------------------------------- studies
+
+def track3d_basis(root: Path) -> str:
+    d = load(root, "track3d_basis.json")["rows"]
+    ref = d["reference"]
+    cases = [c for c in ref["statics"] if c != "wall_s"]
+
+    def dist(a, b):
+        return 1000 * math.dist(a, b)
+
+    rows = []
+    for name, r in d.items():
+        if name == "reference":
+            continue
+        c = r["config"]
+        label = (f"bending {c['bending_order']}, torsion {c['torsion_order']}, "
+                 + ("no stretch" if c["stretch_order"] < 0 else f"stretch {c['stretch_order']}")
+                 + ("" if c["shear_order"] < 0 else f", shears {c['shear_order']}"))
+        errs = [dist(a, b) for a, b in zip(r["dynamics"]["tip"], ref["dynamics"]["tip"])]
+        rms = math.sqrt(sum(e * e for e in errs) / len(errs))
+        rows.append([label, r["dofs"]] + [f"{dist(r['statics'][k]['tip'], ref['statics'][k]['tip']):.1f}"
+                                          for k in cases] + [f"{max(errs):.1f}", f"{rms:.1f}", f"{errs[-1]:.1f}"])
+    rc = ref["config"]
+    return (table(["basis (Legendre orders)", "DoFs"] + [f"{k} (statics)" for k in cases]
+                  + ["2 s step: max", "rms", "at 2 s"], rows)
+            + f"\n\nTip distance (mm) from the reference basis (bending {rc['bending_order']}, torsion "
+            f"{rc['torsion_order']}, stretch {rc['stretch_order']}, shears {rc['shear_order']}: {ref['dofs']} DoFs). "
+            "Data: `benchmarks/track3d_basis.json`.\n\n```bash\npython experiments/track3d_basis.py     # ~15 min\n```")
+
+
+def substeps(root: Path, name: str, command: str) -> str:
+    d = load(root, f"{name}.json")
+    rows = [[r["n_substeps"], f"{sig(1000 * r['random_max_tip_error_m'])} / {sig(1000 * r['random_p95_tip_error_m'])}",
+             f"{sig(1000 * r['held_max_tip_error_m'])} / {sig(1000 * r['held_p95_tip_error_m'])}",
+             num(r["env_steps_per_s"], 0)] for r in d["rows"]]
+    return (table(["steps per 0.1 s", "random actions: max / p95 tip error (mm)", "held 1 s: max / p95 (mm)",
+                   f"env steps/s, batch {d['batch']}"], rows)
+            + f"\n\nAgainst {d['reference_substeps']} steps, {d['episodes']} episodes. Data: `benchmarks/{name}.json`."
+            f"\n\n```bash\n{command}\n```")
+
+
+def balance_substeps(root: Path) -> str:
+    d = load(root, "balance_substeps.json")
+    rows = [[r["substeps"], f"{sig(r['random_max_mm'])} / {sig(r['random_p95_mm'])}",
+             f"{sig(r['baseline_max_mm'])} / {sig(r['baseline_p95_mm'])}",
+             f"{num(100 * r['baseline_success'], 0, '%')}, {r['baseline_time_to_upright_s']:.2f} s"] for r in d["rows"]]
+    return (table(["steps per 0.05 s", "random: max / p95 tip error (mm)", "baseline: max / p95 (mm)",
+                   "baseline closed loop: success, time to upright"], rows)
+            + f"\n\nAgainst {d['reference']} steps. Data: `benchmarks/balance_substeps.json`."
+            "\n\n```bash\npython experiments/balance_substeps.py --substeps 1,2,4,8,16\n```")
+
+
+def reach_obstacles_steps(root: Path) -> str:
+    d = load(root, "reach_obstacles_steps.json")
+    rows = []
+    for r in d["rows"]:
+        tip = (f"{sig(100 * r['tip_error_max_m'])} / {sig(100 * r['tip_error_p95_m'])} cm"
+               if not r.get("diverged") else f"{num(100 * r['diverged'], 0, '%')} diverged")
+        rows.append([f"{r['stiffness']:.0e}".replace("e+0", "e"), r["n_substeps"], tip,
+                     f"{1000 * r['deepest_m']:.0f} mm", f"{1000 * r['reference_deepest_m']:.0f} mm"])
+    return (table(["bar stiffness k (N/m per m)", "ars443 steps per 0.1 s", "tip error: max / p95",
+                   "deepest penetration", "the reference's"], rows)
+            + f"\n\nAgainst {d['reference_substeps']} steps, a batch of {d['batch']} episodes of random actions. "
+            "Data: `benchmarks/reach_obstacles_steps.json`.\n\n```bash\n"
+            "python experiments/reach_obstacles_steps.py --substeps 8 16 --batch 16    # ~15 min\n```")
+
+
+def curvature_substeps(root: Path) -> str:
+    d = load(root, "curvature_substeps.json")
+    rows = [[r["dtype"], r["substeps"], f"{sig(r['tip_error_mm_median'])} / {sig(r['tip_error_mm_p95'])} / "
+             f"{sig(r['tip_error_mm_max'])}", num(r["env_steps_per_s"], 0)] for r in d["rows"]]
+    return (table(["dtype", "steps per 0.1 s", "tip error median / p95 / max (mm)",
+                   f"env steps/s, batch {d['batch']}"], rows)
+            + f"\n\nAgainst {d['reference']}. Data: `benchmarks/curvature_substeps.json`."
+            "\n\n```bash\npython experiments/curvature_substeps.py\n```")
+
+
+def curvature_arm_basis(root: Path) -> str:
+    d = load(root, "curvature_arm_basis.json")
+    rows = [[k, m["dofs"], f"{sig(m['tip_error_mm_median'])} / {sig(m['tip_error_mm_max'])}",
+             f"{sig(m['tangent_error_deg_median'])} / {sig(m['tangent_error_deg_max'])}"]
+            for k, m in d["models"].items()]
+    return (table(["model", "DoFs", "tip error median / max (mm)", "tangent error median / max (deg)"], rows)
+            + f"\n\nAgainst the {d['reference']}, {d['n_samples']} samples ({d['actions']}). "
+            "Data: `benchmarks/curvature_arm_basis.json`.\n\n```bash\npython experiments/curvature_arm_basis.py\n```")
+
+
+def throw3d_convergence(root: Path) -> str:
+    d = load(root, "throw3d_convergence.json")
+    rows = [[k, f"the same arm, {d['fine_steps']} steps",
+             f"{sig(v['max_cm'])} / {sig(v['p95_cm'])} / {sig(v['median_cm'])}"] for k, v in d["integration"].items()]
+    rows += [[k, "the richest arm, 400 steps" if "richest" not in k else "itself at 400 steps",
+              f"{sig(v['max_cm'])} / {sig(v['p95_cm'])} / {sig(v['median_cm'])}"] for k, v in d["basis"].items()]
+    rich = ", ".join(f"{k} {v}" for k, v in d["richest"].items())
+    return (table(["model", "against", "landing difference max / p95 / median (cm)"], rows)
+            + f"\n\nLanding points of {d['n_actions']} random actions. The richest arm: {rich}. "
+            "Data: `benchmarks/throw3d_convergence.json`.\n\n"
+            "```bash\npython experiments/throw3d_convergence.py    # ~15 min\n```")
+
+
+def muscle_workspace(root: Path) -> str:
+    d = load(root, "muscle_workspace.json")
+    rows = []
+    for key, m in d.items():
+        if not isinstance(m, dict):
+            continue
+        kind = "tendons" if key.startswith("tendon") else "muscles"
+        unit = "N" if kind == "tendons" else "N m"
+        low = " / ".join("-" if m["lowest_z_at_radius_m"][r] is None else f"{m['lowest_z_at_radius_m'][r]:.2f}"
+                         for r in ("0.5", "0.6", "0.7", "0.8"))
+        rows.append([f"{kind}, {m['limit']:g} {unit}", num(100 * m["box_within_5cm"], 1, "%"),
+                     num(100 * m["box_within_10cm"], 1, "%"), low + " m", f"{m['max_radius_m']:.2f} m"])
+    return (table(["actuation", "box within 5 cm", "within 10 cm",
+                   "lowest tip at 0.5 / 0.6 / 0.7 / 0.8 m from the axis", "furthest from the axis"], rows)
+            + f"\n\n{d['samples']} held actions per actuation, {d['box_points']} points of the target box. "
+            "Data: `benchmarks/muscle_workspace.json`.\n\n```bash\npython experiments/muscle_workspace.py\n```")
+
+
+def env_throughput(root: Path) -> str:
+    d = load(root, "env_throughput.json")
+    rows = [[f"`{r['task']}`", num(r["env_steps_per_s"], 0), f"{r['first_call_s']:.1f} s",
+             f"{r['load_average_1min']:.1f}"] for r in d]
+    return (table(["task", f"env steps/s, batch {d[0]['batch']}", "first call (compile)", "load average"], rows)
+            + "\n\n`jit(vmap(step))` with auto-reset and random actions, float64. "
+            "Data: `benchmarks/env_throughput.json`."
+            "\n\n```bash\npython experiments/bench_env.py --task reach_pose --batch 1024   # and the other tasks\n```")
+
+
+def sim_throughput(root: Path) -> str:
+    d = load(root, "sim.json")
+    rows = []
+    for c in d["configurations"]:
+        for r in c["rows"]:
+            rows.append([f"{c['n_steps']} {c['integrator']}", c["dtype"], r["batch"], num(r["throws_per_s"], 0),
+                         num(r["sim_seconds_per_wall_second"], 0), f"{1000 * c['release_error_m']:.2f} mm"])
+    return (table(["integration", "dtype", "batch", "throws/s", "simulated s per wall s", "release error"], rows)
+            + "\n\nBasketball swings to release, batched with `vmap`. Data: `benchmarks/sim.json`."
+            "\n\n```bash\npython experiments/bench_sim.py --json benchmarks/sim.json\n```")
+
+
+def follow_target_runs(root: Path) -> str:
+    d = load(root, "follow_target_first_runs.json")
+    rows = []
+    for r in d["runs"]:
+        e = r["eval"]
+        rows.append([r["simulation"], r["timing"]["episodes"], f"{r['timing']['train_s']:.0f} s",
+                     f"{e['discounted_return_average']['mean']:.2f}", f"{e['discounted_return_start']['mean']:.2f}",
+                     f"{100 * e['mean_distance_m']:.1f} cm", num(100 * e["within_5cm"], 1, "%")])
+    return (table(["simulation", "episodes", "training", "discounted return (average start)",
+                   "discounted return (from the start)", "mean distance", "within 5 cm"], rows)
+            + f"\n\n{d['note']}. Data: `benchmarks/follow_target_first_runs.json`.")
+
+
+def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
+    """The episodes at which ``ok`` first holds, and from which it holds at every later evaluation."""
+    first = next((c["episodes"] for c in curve if ok(c)), None)
+    held = next((c["episodes"] for i, c in enumerate(curve) if all(ok(x) for x in curve[i:])), None)
+    return first, held
+
+
+def time_to_quality(root: Path) -> str:
+    def k(n):
+        return "not reached" if n is None else f"{round(n / 1000)}k"
+
+    def paper(c):
+        return c["success_rate_10cm"] >= 1.0 and c["within_1cm"] >= 0.55
+
+    def p93(c):
+        return c["within_1cm"] >= 0.93
+
+    def cells(curve):
+        first, held = _first_and_held(curve, paper)
+        end = curve[-1]
+        return [f"{k(first)} ({'not held' if held is None else k(held)})", k(_first_and_held(curve, p93)[0]),
+                f"{100 * end['success_rate_10cm']:.1f}% / {100 * end['within_1cm']:.1f}%"]
+
+    trunk = load(root, "time_to_quality_paper_layers.json")["runs"]
+    rows = [[seed, *cells(load(root, f)["curve"]), *cells(trunk[seed]["curve"])]
+            for seed, f in BASKETBALL_FILES[:5]]
+    return (table(["seed", "paper's level (100% within 10 cm, >= 55% within 1 cm): first (held from)",
+                   "93% within 1 cm, first", "end: within 10 / 1 cm", "paper's trunk: paper's level",
+                   "paper's trunk: 93%", "paper's trunk: end"], rows)
+            + "\n\nEpisodes of the default program (trunk 128-64-32) and of the paper's trunk (128-32-16) at "
+            "which each level is first reached on the 1000 held-out targets. "
+            "Data: `benchmarks/time_to_quality*.json`."
+            "\n\n```bash\n"
+            "python experiments/time_to_quality.py --json benchmarks/time_to_quality.json            # seed 0\n"
+            "python experiments/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   # seeds 1-4\n"
+            "python experiments/time_to_quality.py seed=0 shared_hidden=128,32,16    # the paper's trunk\n```")
+
+
+def tendon_arm(root: Path) -> str:
+    d = load(root, "tendon_arm.json")
+    cases: dict[str, dict[int, dict]] = {}
+    for r in d["rows"]:
+        cases.setdefault(r["case"], {})[r["batch"]] = r
+    rows = [[case, by[1]["dofs"], f"{by[1]['compile_s']:.1f} s / {by[1024]['compile_s']:.1f} s",
+             num(by[1]["steps_per_s"], 0), num(by[1024]["steps_per_s"], 0)] for case, by in cases.items()]
+    st = d["statics"]
+    return (table(["case", "DoFs", "compile, batch 1 / 1024", "arm-steps/s, batch 1", "arm-steps/s, batch 1024"],
+                  rows)
+            + f"\n\n`{d['integrator']}` at dt = {1000 * d['dt']:g} ms for {d['duration']:g} s, float64. Statics: "
+            f"`equilibrium` compiles in {st['equilibrium']['compile_s']:.0f} s and solves in "
+            f"{1000 * st['equilibrium']['solve_s']:.0f} ms, `inverse_statics` in "
+            f"{st['inverse_statics']['compile_s']:.0f} s and {1000 * st['inverse_statics']['solve_s']:.0f} ms. "
+            "Data: `benchmarks/tendon_arm.json`.\n\n"
+            "```bash\npython experiments/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
+
+
+STUDIES = {
+    "track3d_basis": track3d_basis,
+    "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/track3d_substeps.py "
+                                          "--substeps 2,4,8,16 --episodes 32"),
+    "track3d_muscle_substeps": lambda r: substeps(
+        r, "track3d_muscle_substeps", "python experiments/track3d_substeps.py --task track3d_muscle --substeps 8 "
+        "--episodes 16 --batch 64 --json benchmarks/track3d_muscle_substeps.json"),
+    "balance_substeps": balance_substeps,
+    "reach_obstacles_steps": reach_obstacles_steps,
+    "curvature_substeps": curvature_substeps,
+    "curvature_arm_basis": curvature_arm_basis,
+    "throw3d_convergence": throw3d_convergence,
+    "muscle_workspace": muscle_workspace,
+    "env_throughput": env_throughput,
+    "sim": sim_throughput,
+    "follow_target_first_runs": follow_target_runs,
+    "time_to_quality": time_to_quality,
+    "tendon_arm": tendon_arm,
+}
+
+
+# ---------------------------------------------------------------- what the docs use
+
+def tables(root: Path = ROOT) -> dict[str, str]:
+    """Every generated table by name (``<!-- results: NAME -->`` in a page)."""
+    out = {"basketball": basketball_table(root)}
+    for task in TASK_PAGES:
+        if task == "basketball":
+            continue
+        d = eval_file(root, task)
+        out[task] = eval_table(d, ("default", "longer", "reference"))
+        if any(r["group"] == "variant" for r in d["runs"]):
+            out[f"{task}_variants"] = eval_table(d, ("variant",))
+    for name, make in STUDIES.items():
+        out[name] = make(root)
+    # for pages at the top of docs/ (links relative to it)
+    out["task_headlines"] = table(["task", "default run (seed 0, 1000 held-out episodes)"],
+                                  [[f"[`{task}`]({page})", headline(root, task)] for task, page in TASK_PAGES.items()])
+    return out
+
+
+def pages(root: Path = ROOT) -> dict[str, str]:
+    """The generated Results section: {docs-relative path: markdown}."""
+    t = tables(root)
+    overview = ["# Results", "",
+                "Every number on these pages is read from the committed files in `benchmarks/` when the site "
+                "is built (`docs/gen_results.py`); none is typed by hand. A new run of a task is a new entry of "
+                "its `benchmarks/eval_<task>.json` ([adding a task](../adding_a_task.md#its-page-and-its-results)).",
+                "",
+                "## The tasks' defaults", ""]
+    rows = [[f"[`{task}`](../{page})", headline(root, task)] for task, page in TASK_PAGES.items()]
+    rows.append(["[`follow_target`, `ik_4d`, `obstacles_2d`, `obstacles_3d`](../tasks_benchmark.md)",
+                 "first runs only: [the benchmark tasks](benchmark_tasks.md)"])
+    overview += [table(["task", "default run (1000 held-out episodes)"], rows), "",
+                 "## Every run, by task", ""]
+    overview += [f"- [{task}]({task}.md)" for task in TASK_PAGES]
+    overview += ["- [the benchmark tasks](benchmark_tasks.md)", "", "## The data files", "",
+                 "Each JSON file of `benchmarks/`, with what made it where the file says; "
+                 "[benchmarks/README.md](../benchmarks/README.md) has the benchmark tables and their commands.", ""]
+    for f in sorted((root / "benchmarks").glob("*.json")):
+        d = json.loads(f.read_text())
+        about = d.get("note") or d.get("about") or d.get("command") if isinstance(d, dict) else None
+        overview.append(f"- [`{f.name}`](../benchmarks/{f.name})" + (f": {about}" if about else ""))
+    out = {"results/index.md": "\n".join(overview) + "\n"}
+    for task, page in TASK_PAGES.items():
+        body = [f"# {task}: every run", "", f"The task: [{page}](../{page}).", ""]
+        if task == "basketball":
+            body += [t["basketball"]]
+        else:
+            d = eval_file(root, task)
+            body += [d["about"] + ".", "", f"Recorded: {d['source']}.", ""]
+            for g, title in GROUPS.items():
+                if any(r["group"] == g for r in d["runs"]):
+                    body += [f"## {title.capitalize()}", "", eval_table(d, (g,)), ""]
+        out[f"results/{task}.md"] = "\n".join(body) + "\n"
+    out["results/benchmark_tasks.md"] = ("# The benchmark tasks: first runs\n\nThe tasks: "
+                                         "[tasks_benchmark.md](../tasks_benchmark.md).\n\n## follow_target\n\n"
+                                         + t["follow_target_first_runs"] + "\n")
+    return out
+
+
+if __name__ == "__main__":
+    made = tables()
+    for name in sys.argv[1:] or made:
+        print(f"## {name}\n\n{made[name]}\n")
