@@ -8,7 +8,7 @@ run, a page per task with every recorded run and its command, and an index of th
 Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs, their training, the
 command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
 JSON (``track3d_basis``, ``*_substeps``, ``reach_obstacles_steps``, ``throw3d_convergence``,
-``muscle_workspace``, ``curvature_arm_basis``, ``env_throughput``, ``sim``, ``follow_target_first_runs``).
+``muscle_workspace``, ``curvature_arm_basis``, ``env_throughput``, ``sim``, ``benchmark_task_runs``).
 
 Run it alone to print every table: ``python docs/gen_results.py [NAME ...]``.
 """
@@ -296,17 +296,14 @@ def sim_throughput(root: Path) -> str:
             "\n\n```bash\npython experiments/bench_sim.py --json benchmarks/sim.json\n```")
 
 
-def follow_target_runs(root: Path) -> str:
-    d = load(root, "follow_target_first_runs.json")
-    rows = []
-    for r in d["runs"]:
-        e = r["eval"]
-        rows.append([r["simulation"], r["timing"]["episodes"], f"{r['timing']['train_s']:.0f} s",
-                     f"{e['discounted_return_average']['mean']:.2f}", f"{e['discounted_return_start']['mean']:.2f}",
-                     f"{100 * e['mean_distance_m']:.1f} cm", num(100 * e["within_5cm"], 1, "%")])
-    return (table(["simulation", "episodes", "training", "discounted return (average start)",
-                   "discounted return (from the start)", "mean distance", "within 5 cm"], rows)
-            + f"\n\n{d['note']}. Data: `benchmarks/follow_target_first_runs.json`.")
+def benchmark_task_runs(root: Path) -> str:
+    """Every kept training run of the four benchmark tasks (``benchmarks/curvature_ppo_study/``)."""
+    sys.path.insert(0, str(root / "experiments"))
+    import curvature_ppo_study
+
+    return (curvature_ppo_study.table(root / "benchmarks" / "curvature_ppo_study")
+            + "\n\nData: `benchmarks/curvature_ppo_study/*.json`, one file per run, each with its command."
+            "\n\n```bash\npython experiments/curvature_ppo_study.py --table\n```")
 
 
 def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
@@ -380,7 +377,7 @@ STUDIES = {
     "muscle_workspace": muscle_workspace,
     "env_throughput": env_throughput,
     "sim": sim_throughput,
-    "follow_target_first_runs": follow_target_runs,
+    "benchmark_task_runs": benchmark_task_runs,
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
 }
@@ -417,7 +414,7 @@ def pages(root: Path = ROOT) -> dict[str, str]:
                 "## The tasks' defaults", ""]
     rows = [[f"[`{task}`](../{page})", headline(root, task)] for task, page in TASK_PAGES.items()]
     rows.append(["[`follow_target`, `ik_4d`, `obstacles_2d`, `obstacles_3d`](../tasks_benchmark.md)",
-                 "first runs only: [the benchmark tasks](benchmark_tasks.md)"])
+                 "not trained to their targets yet: [every run](benchmark_tasks.md)"])
     overview += [table(["task", "default run (1000 held-out episodes)"], rows), "",
                  "## Every run, by task", ""]
     overview += [f"- [{task}]({task}.md)" for task in TASK_PAGES]
@@ -440,9 +437,9 @@ def pages(root: Path = ROOT) -> dict[str, str]:
                 if any(r["group"] == g for r in d["runs"]):
                     body += [f"## {title.capitalize()}", "", eval_table(d, (g,)), ""]
         out[f"results/{task}.md"] = "\n".join(body) + "\n"
-    out["results/benchmark_tasks.md"] = ("# The benchmark tasks: first runs\n\nThe tasks: "
-                                         "[tasks_benchmark.md](../tasks_benchmark.md).\n\n## follow_target\n\n"
-                                         + t["follow_target_first_runs"] + "\n")
+    out["results/benchmark_tasks.md"] = ("# The benchmark tasks: every run\n\nThe tasks: "
+                                         "[tasks_benchmark.md](../tasks_benchmark.md).\n\n"
+                                         + t["benchmark_task_runs"] + "\n")
     return out
 
 

@@ -11,7 +11,6 @@ benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Write
 the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
 
     python experiments/curvature_ppo_study.py --table     # the results so far, as a markdown table
-    python experiments/curvature_ppo_study.py --docs      # that table into docs/tasks_benchmark.md
     python experiments/curvature_ppo_study.py --figure    # figures/curvature_learning_curves.png
 """
 
@@ -75,17 +74,6 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
     return "\n".join(lines)
 
 
-DOC = ROOT / "docs" / "tasks_benchmark.md"
-BEGIN, END = "<!-- curvature_ppo_study table: begin -->", "<!-- curvature_ppo_study table: end -->"
-
-
-def docs_with_table(text: str) -> str:
-    """``text`` with the part between the markers replaced by ``table()``."""
-    head, rest = text.split(BEGIN)
-    _, tail = rest.split(END)
-    return f"{head}{BEGIN}\n{table()}\n{END}{tail}"
-
-
 def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
            path: Path = ROOT / "figures" / "curvature_learning_curves.png") -> Path:
     """Each task's training curves in the benchmark's metric (the stochastic policy's averaged discounted
@@ -131,10 +119,6 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
 def main(argv: list[str]) -> int:
     if argv == ["--table"]:
         print(table())
-        return 0
-    if argv == ["--docs"]:
-        DOC.write_text(docs_with_table(DOC.read_text()))
-        print(f"wrote the table into {DOC}")
         return 0
     if argv == ["--figure"]:
         print(figure())
