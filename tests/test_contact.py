@@ -16,9 +16,14 @@ from helpers import raises_naming
 G = 9.81
 
 
+def smooth_depth(g, l):
+    """The documented smoothed penetration: -g when deep, (l - g)^2 / (4 l) for |g| < l, 0 past l."""
+    return np.where(g <= -l, -g, np.where(g < l, (l - g) ** 2 / (4 * l), 0.0))
+
+
 def smooth_gap(load, k, l):
-    """The gap at which the smoothed penalty k l softplus(-g / l) carries ``load``."""
-    return brentq(lambda g: k * l * np.logaddexp(0.0, -g / l) - load, -1.0, 1.0, xtol=1e-15)
+    """The gap at which the smoothed penalty k delta(g) carries ``load``."""
+    return brentq(lambda g: k * smooth_depth(g, l) - load, -1.0, l, xtol=1e-15)
 
 
 # ----------------------------------------------------------------------------
@@ -262,9 +267,10 @@ def test_stacked_spheres_and_capsules_give_the_law_of_each_obstacle_alone():
                  gv.Sphere((0.1, -0.1, 0.1), 0.08), gv.Capsule((0.0, -0.3, -0.1), (0.0, 0.3, -0.1), 0.02),
                  gv.Plane((0.0, -0.15, 0.0)))
     pen = contact.Penalty(stiffness=1e6, damping=1e3, smoothing=1e-3, friction=0.4)
-    w, f, g = contact.law(p, R, eta, radius, lo, hi, obstacles, pen, 0.0)
+    w, f, g, e = contact.law(p, R, eta, radius, lo, hi, obstacles, pen, 0.0)
     alone = [contact.law(p, R, eta, radius, lo, hi, (o,), pen, 0.0) for o in obstacles]
     assert float(jnp.max(jnp.abs(f))) > 1.0 and float(jnp.min(g)) < 0.0  # some pieces do touch
     np.testing.assert_allclose(w, sum(a[0] for a in alone), rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(f, sum(a[1] for a in alone), rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(g, jnp.min(jnp.stack([a[2] for a in alone]), axis=0))
+    np.testing.assert_allclose(e, sum(a[3] for a in alone), rtol=1e-12, atol=1e-12)
