@@ -285,6 +285,20 @@ def energy(robot: Robot, q, t=0.0) -> jax.Array:
     return jnp.asarray(evaluate(robot, forward(robot, qs, qds, with_psi=False, jacobian=False), qs, qds, t)[3])
 
 
+def site_positions(robot: Robot, q) -> jax.Array:
+    """World position (n_sites, 3) of every ``ContactSite`` at q (n,)."""
+    n, n_links = robot.n_dofs, len(robot.links)
+    qs = [q[i] for i in range(n)]
+    points = forward(robot, qs, [jnp.zeros_like(x) for x in qs], with_psi=False, jacobian=False)
+    out = []
+    for site in robot.contact.sites:
+        link = robot.links[site.link % n_links]
+        pt = next(x for x in points if x.link == site.link % n_links and x.kind == "rigid")
+        R, p, _ = (a[0] for a in samples.arrays(pt.R, pt.p, pt.eta, 1))
+        out.append(p + R @ (jnp.asarray(site.offset, q.dtype) - jnp.asarray(link.com, q.dtype)))
+    return jnp.stack(out)
+
+
 def sites(robot: Robot) -> list[tuple[int, Any]]:
     """(link, X or site index) of every row of the contact report, in order."""
     if robot.contact is None:
