@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from gvsjax import contact
+from gvsjax import contact, penetration
 from helpers import raises_naming
 
 G = 9.81
@@ -121,6 +121,18 @@ def friction_per_load(v, mu_s, mu_k, v_s):
 
 
 MU_S, MU_K = 0.4, 0.3
+
+
+def test_the_friction_law_holds_and_creeps_as_documented():
+    """The largest friction per load max_v mu(v) v / sqrt(v^2 + v_s^2) (the steepest slope held)
+    and the creep speeds in docs/contact.md, from the law as gvsjax evaluates it."""
+    v_s = 1e-2
+    v = np.linspace(1e-6, 0.5, 200001)
+    for mu_k, hold in ((0.0, 0.948), (0.75, 0.967), (1.0, 1.0)):
+        law = np.asarray(penetration.friction_coefficient(jnp.asarray(v * v), 1.0, mu_k, v_s)) * v
+        assert abs(law.max() - hold) < 1.5e-3, (mu_k, law.max())
+        for tan, creep in ((0.5, 0.58), (0.8, 1.34), (0.9, 2.09)):
+            assert v[np.argmax(law >= tan)] <= creep * v_s * (1 + 1e-3)
 
 
 def test_two_coefficients_hold_a_block_below_the_static_angle_up_to_the_creep():
