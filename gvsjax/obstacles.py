@@ -99,9 +99,9 @@ class Sphere:
         u = jnp.clip(centre, lo, hi)
         d = p + u[..., None] * t - c
         dist = _norm(d)
-        floor = _norm(p + centre[..., None] * t - c) - self.radius
-        return Piece(u, dist - self.radius, d / dist[..., None], floor,
-                     sphere_curvature(self.radius, rod_radius), centre, jnp.zeros_like(dist), v)
+        curv = sphere_curvature(self.radius, rod_radius)
+        return Piece(u, dist - self.radius, d / dist[..., None], anchored_floor(dist - self.radius, curv, u, centre),
+                     curv, centre, jnp.zeros_like(dist), v)
 
 
 @struct.dataclass
@@ -121,13 +121,13 @@ class Capsule:
         ee = _dot(e, e)
         r0 = p - a
         te, b2 = _dot(t, e), _dot(e, r0)
-        u, sigma, centre, sigma_c, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
+        u, sigma, centre, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
         d = r0 + u[..., None] * t - sigma[..., None] * e
         dist = _norm(d)
-        floor = _norm(r0 + centre[..., None] * t - sigma_c[..., None] * e) - self.radius
-        bend = capsule_bend(te, b2, ee, sin2, lo, hi, self.radius + rod_radius)
-        return Piece(u, dist - self.radius, d / dist[..., None], floor,
-                     sphere_curvature(self.radius, rod_radius) * bend, centre, jnp.zeros_like(dist), v)
+        curv = sphere_curvature(self.radius, rod_radius) * capsule_bend(te, b2, ee, sin2, lo, hi,
+                                                                        self.radius + rod_radius)
+        return Piece(u, dist - self.radius, d / dist[..., None], anchored_floor(dist - self.radius, curv, u, centre),
+                     curv, centre, jnp.zeros_like(dist), v)
 
 
 def sphere_curvature(radius, rod_radius):
@@ -137,18 +137,24 @@ def sphere_curvature(radius, rod_radius):
     return 1.0 / (radius + rod_radius)
 
 
+def anchored_floor(gap, curvature, u, centre):
+    """The parabola's least gap, so that it passes through the true ``gap`` at the piece's nearest
+    point u (the vertex itself when inside the piece). C^1 in the pose as u leaves the vertex:
+    the gap is stationary in u there."""
+    return gap - 0.5 * curvature * (u - centre) ** 2
+
+
 def segment_closest(te, b1, b2, ee, lo, hi):
     """The closest points of a piece p + u t (|t| = 1, u in [lo, hi]) and a segment a + sigma e
-    (sigma in [0, 1]) from te = t.e, b1 = t.(p - a), b2 = e.(p - a), ee = e.e: (u, sigma at u,
-    the unclamped u nearest the segment's point sigma_c, sigma_c, sin^2 of the lines' angle).
-    Layout-free scalars."""
+    (sigma in [0, 1]) from te = t.e, b1 = t.(p - a), b2 = e.(p - a), ee = e.e: (u, sigma,
+    the unclamped u of the lines' closest approach, sin^2 of their angle). Layout-free scalars."""
     sin2 = jnp.maximum(1.0 - te * te / ee, 0.0)
     sigma = jnp.clip((b2 - b1 * te) / jnp.maximum(ee * sin2, TINY), 0.0, 1.0)
     centre = sigma * te - b1
     sigma = jnp.clip((centre * te + b2) / ee, 0.0, 1.0)
     centre = sigma * te - b1
     u = jnp.clip(centre, lo, hi)
-    return u, jnp.clip((u * te + b2) / ee, 0.0, 1.0), centre, sigma, sin2
+    return u, jnp.clip((u * te + b2) / ee, 0.0, 1.0), centre, sin2
 
 
 def capsule_bend(te, b2, ee, sin2, lo, hi, reach):

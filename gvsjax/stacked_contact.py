@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from gvsjax import penetration
-from gvsjax.obstacles import TINY, Capsule, Sphere, capsule_bend, segment_closest, sphere_curvature
+from gvsjax.obstacles import TINY, Capsule, Sphere, anchored_floor, capsule_bend, segment_closest, sphere_curvature
 
 
 def _dot(a, b):
@@ -43,20 +43,20 @@ def _piece(obs, p, t, lo, hi, r):
         u = jnp.clip(centre, lo, hi)
         d = tuple(p[i] + u * t[i] - c[:, i] for i in range(3))
         dist = _norm(d)
-        floor = _norm(tuple(centre * t[i] - cp[i] for i in range(3))) - radius
-        return u, dist - radius, tuple(x / dist for x in d), floor, sphere_curvature(radius, r), centre
+        curv = sphere_curvature(radius, r)
+        floor = anchored_floor(dist - radius, curv, u, centre)
+        return u, dist - radius, tuple(x / dist for x in d), floor, curv, centre
     a = jnp.asarray(obs.start, dtype)
     e_arr = jnp.asarray(obs.end, dtype) - a
     e = tuple(e_arr[:, i] for i in range(3))
     ee = _dot(e, e)
     r0 = tuple(p[i] - a[:, i] for i in range(3))
     te, b2 = _dot(t, e), _dot(e, r0)
-    u, sigma, centre, sigma_c, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
+    u, sigma, centre, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
     d = tuple(r0[i] + u * t[i] - sigma * e[i] for i in range(3))
     dist = _norm(d)
-    floor = _norm(tuple(r0[i] + centre * t[i] - sigma_c * e[i] for i in range(3))) - radius
     curv = sphere_curvature(radius, r) * capsule_bend(te, b2, ee, sin2, lo, hi, radius + r)
-    return u, dist - radius, tuple(x / dist for x in d), floor, curv, centre
+    return u, dist - radius, tuple(x / dist for x in d), anchored_floor(dist - radius, curv, u, centre), curv, centre
 
 
 def stacked_law(obs: Any, p, tangent, omega, vel, radius, lo, hi, pen) -> tuple:
