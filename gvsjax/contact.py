@@ -1,4 +1,4 @@
-"""Contact between the robot and obstacles: a smooth penalty with regularised Coulomb friction.
+"""Contact between the robot and obstacles: a conservative penalty with regularised friction.
 
 The rod is a tube: every point within the section's radius (circumscribed
 circle for ellipses and rectangles; ``taper`` scales it) of the centreline.
@@ -8,18 +8,19 @@ piece of tube along its local tangent, u in [-h/2, h/2] (half of that at the
 link's ends), so the pieces tile the rod without gaps: an obstacle of any
 width is found, wherever it lies between samples. The piece departs from the
 curved centreline by at most kappa h^2 / 8 (kappa: curvature, 1/m), the
-sampling's only geometric error. The penalty per unit length is integrated
-over each piece in closed form from the obstacle's overlap profile (parabolic
-for spheres and capsules, linear for planes and box faces), so the force on a
-straight rod does not depend on where an obstacle sits between samples.
-Rigid links touch at ``ContactSite`` balls fixed in their frame.
+sampling's only geometric error.
 
-Normal force, per metre of rod (per site for rigid links), at gap g (m):
-``k delta(g) + c chi(g) (-v_n)``, clipped at 0 (no adhesion), with the smooth
-penetration ``delta = l softplus(-g / l)`` and indicator ``chi = sigmoid(-g /
-l)`` (l: smoothing length). Friction: ``-mu f_n v_t / sqrt(|v_t|^2 + v_s^2)``
-on the slip velocity v_t of the rod's surface point against the obstacle's:
-Coulomb's law for |v_t| >> v_s, a viscous creep below. See docs/contact.md.
+The penalty has an energy: k Phi(g) per metre of rod at gap g (per site for
+rigid links), integrated over each piece in closed form along the obstacle's
+gap profile (a parabola for spheres and capsules, linear for planes and box
+faces; ``gvsjax.penetration``). The elastic force and moment on a piece are
+that energy's exact derivatives (no work is gained round a closed path; the
+contact stiffness is symmetric). Damping ``c chi(g) (-v_n)`` per metre is
+added along the normal, the total clipped at 0 (no adhesion). Friction:
+``-mu(|v_t|) f_n v_t / sqrt(|v_t|^2 + v_s^2)`` on the slip velocity v_t of the
+rod's surface point against the obstacle's, mu falling from the static to the
+kinetic coefficient as the slip grows: Coulomb's law for |v_t| >> v_s, a
+viscous creep below. See docs/contact.md.
 """
 
 from __future__ import annotations
@@ -32,13 +33,13 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax import lie
+from gvsjax import contact_samples as samples
+from gvsjax import lie, penetration
 from gvsjax.kinematics import forward
-from gvsjax.lie import zeros
-from gvsjax.magnus import ZANNA, Point, advance, grid_of, magnus, rest_strain, strain, strain_rate
+from gvsjax.magnus import Point
 from gvsjax.model import RigidLink, Robot, SoftLink
 from gvsjax.obstacles import OBSTACLES, Box, Capsule, Plane, Sphere
-from gvsjax.stacked_contact import curved_area, smooth_depth, stacked_law
+from gvsjax.stacked_contact import stacked_law
 from gvsjax.validation import concrete, finite, integer, nonnegative, positive, require
 
 
@@ -47,14 +48,17 @@ class Penalty:
     """Contact law parameters. For soft links stiffness is N/m per metre of rod (N/m^2) and
     damping N s/m per metre (N s/m^2); for rigid sites, N/m and N s/m.
 
-    smoothing: length l of the softplus (m); friction: Coulomb's mu; slip_speed: the
-    regularisation speed v_s (m/s) below which friction turns viscous (a creep)."""
+    smoothing: length l (m) over which the penetration's corner is rounded; friction: the
+    kinetic coefficient mu_k; static_friction: mu_s >= mu_k (None: mu_k, one coefficient);
+    slip_speed: the regularisation speed v_s (m/s) below which friction turns viscous (a
+    creep); mu falls from mu_s to mu_k around ``penetration.STRIBECK`` v_s."""
 
     stiffness: Any = 1e7
     damping: Any = 5e3
     smoothing: Any = 1e-5
     friction: Any = 0.0
     slip_speed: Any = 1e-2
+    static_friction: Any = None
 
 
 @struct.dataclass
@@ -101,17 +105,7 @@ def points_for(length: float, curvature: float, error: float = 1e-3) -> int:
 # ----------------------------------------------------------------------------
 # the law at one sample (broadcasts over leading axes)
 
-
-def _flat_area(gap, slope, u, lo, hi, l):
-    """For a gap linear along the piece (gap at u, d gap/du = slope): the integral over [lo, hi]
-    of the depth, smoothed at the deepest end and falling linearly from there while
-    positive; the length where it is positive, and its middle (where the force acts)."""
-    deep = jnp.where(slope > 0, lo, hi)
-    s = jnp.maximum(jnp.abs(slope), 1e-12)
-    peak = smooth_depth(gap + slope * (deep - u), l)
-    length = jnp.minimum(peak / s, hi - lo)
-    middle = jnp.where(slope > 0, lo + length / 2, hi - length / 2)
-    return length * (peak - s * length / 2), length, middle
+SAFE_AREA = 1e-6  # times l^2: where I0 is this small the centroid I1 / I0 falls to the sample
 
 
 def _groups(obstacles) -> list[tuple[Any, bool]]:
@@ -131,29 +125,59 @@ def _groups(obstacles) -> list[tuple[Any, bool]]:
     return out + [(o, False) for o in rest]
 
 
+def static_friction(pen: Penalty):
+    """mu_s: ``pen.static_friction``, or ``pen.friction`` when that is None."""
+    return pen.friction if pen.static_friction is None else pen.static_friction
+
+
+def _curved(obs, p, tangent, radius, lo, hi, t, pen: Penalty):
+    """A sphere's or capsule's piece: (Piece, energy, k I0, I_chi, elastic force, its moment),
+    the force and moment the derivatives of the energy through the profile's parameters."""
+    shape = jax.eval_shape(lambda: obs.piece(p, tangent, lo, hi, t, radius).gap).shape
+    p, tangent = (jnp.broadcast_to(x, shape + (3,)) for x in (p, tangent))  # one cotangent per obstacle
+
+    def profile(p, tangent):
+        pc = obs.piece(p, tangent, lo, hi, t, radius)
+        return (pc.floor - radius, pc.curvature, pc.centre), pc
+
+    (floor, curv, centre), pull, pc = jax.vjp(profile, p, tangent, has_aux=True)
+    energy, I0, I2, I_chi, phi_lo, phi_hi = penetration.curved(floor, curv, lo - centre, hi - centre, pen.smoothing)
+    k = pen.stiffness
+    d_p, d_t = pull((-k * I0, -k * I2, k * (phi_lo - phi_hi)))
+    return pc, k * energy, k * I0, I_chi, -d_p, -jnp.cross(tangent, d_t)
+
+
 def _pair(obs, p, tangent, omega, vel, radius, lo, hi, pen: Penalty, t):
     """One obstacle's (or a stack's) world force and moment about the centre on a piece or site,
-    and its gap (``law``'s arguments; lo None: a site)."""
-    l = pen.smoothing
-    point = lo is None
-    pc = obs.piece(p, tangent, 0.0 if point else lo, 0.0 if point else hi, t)
-    g = pc.gap - radius
-    if point:
-        area, length, u = smooth_depth(g, l), 1.0, pc.u
+    its gap and its penalty energy (``law``'s arguments; lo None: a site)."""
+    l, k = pen.smoothing, pen.stiffness
+    if lo is None:  # a ball: k Phi(g), pushing along the normal through the centre
+        pc = obs.piece(p, tangent, 0.0, 0.0, t)
+        g = pc.gap - radius
+        push, I_chi = k * penetration.depth(g, l), penetration.indicator(g, l)
+        energy = k * penetration.energy_density(g, l)
+        f_el, m_el, u = push[..., None] * pc.normal, 0.0, pc.u
     elif isinstance(obs, (Plane, Box)):
-        area, length, u = _flat_area(g, pc.slope, pc.u, lo, hi, l)
-        g = g + pc.slope * (jnp.where(pc.slope > 0, lo, hi) - pc.u)  # at the deepest end
+        pc = obs.piece(p, tangent, lo, hi, t)
+        g = pc.gap - radius
+        g0 = g - pc.slope * pc.u  # the gap at the sample
+        energy, I0, I1, I_chi = penetration.flat(g0, pc.slope, lo, hi, l)
+        energy, push = k * energy, k * I0
+        f_el, m_el = push[..., None] * pc.normal, (k * I1)[..., None] * jnp.cross(tangent, pc.normal)
+        u = I1 / (I0 + SAFE_AREA * l * l)  # damping and friction act at the penetration's centroid
+        g = jnp.minimum(g0 + pc.slope * lo, g0 + pc.slope * hi)
     else:
-        area, length, u = curved_area(g, pc.curvature, pc.u, pc.centre, lo, hi, l)
-    chi = jax.nn.sigmoid(-g / l)
+        pc, energy, push, I_chi, f_el, m_el = _curved(obs, p, tangent, radius, lo, hi, t, pen)
+        g, u = pc.gap - radius, pc.u
     arm = u[..., None] * tangent - radius[..., None] * pc.normal  # centre -> surface point
     v_rel = vel + jnp.cross(omega, arm) - pc.velocity
     v_n = jnp.sum(v_rel * pc.normal, axis=-1)
-    f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
+    f_n = jnp.maximum(push - pen.damping * I_chi * v_n, 0.0)  # the damping never pulls
     v_t = v_rel - v_n[..., None] * pc.normal
-    slip = jnp.sqrt(jnp.sum(v_t * v_t, axis=-1) + pen.slip_speed**2)
-    f = f_n[..., None] * (pc.normal - pen.friction * v_t / slip[..., None])
-    return f, jnp.cross(arm, f), g
+    mu = penetration.friction_coefficient(jnp.sum(v_t * v_t, axis=-1), static_friction(pen), pen.friction,
+                                          pen.slip_speed)
+    f = (f_n - push)[..., None] * pc.normal - (f_n * mu)[..., None] * v_t  # besides the elastic force
+    return f_el + f, m_el + jnp.cross(arm, f), g, energy
 
 
 def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
@@ -163,133 +187,54 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     (..., 6) body twist (angular, linear); radius (...) m; lo, hi: the piece's extent along
     the tangent (m; None for a site: a ball, forces per site). Returns (body wrench (..., 6):
     moment N m, force N, in the section's frame; world force (..., 3) N; the smallest gap
-    over the obstacles (...), m, negative when penetrating).
+    over the obstacles (...), m, negative when penetrating; the penalty's energy (...), J).
     """
     tangent = R[..., :, 0]
     omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
     force = jnp.zeros_like(p)
     moment = jnp.zeros_like(p)
     gap_min = jnp.full(p.shape[:-1], jnp.inf, p.dtype)
+    energy = jnp.zeros(p.shape[:-1], p.dtype)
     for obs, stacked in _groups(obstacles):
         if stacked and lo is not None:
-            f3, m3, g = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen)
+            f3, m3, g, e = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen)
             force, moment = force + jnp.stack(f3, -1), moment + jnp.stack(m3, -1)
-            gap_min = jnp.minimum(gap_min, g)
+            gap_min, energy = jnp.minimum(gap_min, g), energy + e
             continue
         # a stack of obstacles is one more axis before the vectors' (summed over below)
         x = (lambda a: a[..., None, :]) if stacked else (lambda a: a)  # noqa: E731
         y = (lambda a: a if a is None else jnp.asarray(a)[..., None]) if stacked else (lambda a: a)  # noqa: E731
-        f, m, g = _pair(obs, x(p), x(tangent), x(omega), x(vel), y(radius), y(lo), y(hi), pen, t)
+        f, m, g, e = _pair(obs, x(p), x(tangent), x(omega), x(vel), y(radius), y(lo), y(hi), pen, t)
         if stacked:
-            f, m, g = jnp.sum(f, axis=-2), jnp.sum(m, axis=-2), jnp.min(g, axis=-1)
+            f, m, g, e = jnp.sum(f, axis=-2), jnp.sum(m, axis=-2), jnp.min(g, axis=-1), jnp.sum(e, axis=-1)
         force = force + f
         moment = moment + m
         gap_min = jnp.minimum(gap_min, g)
+        energy = energy + e
     body = jnp.concatenate([jnp.einsum("...ji,...j->...i", R, moment),
                             jnp.einsum("...ji,...j->...i", R, force)], axis=-1)
-    return body, force, gap_min
+    return body, force, gap_min, energy
 
 
-# ----------------------------------------------------------------------------
-# the robot's contact samples
-
-
-def _stack(xs: list, n_c: int):
-    """One scalar per sample as a (n_c,) scalar; a structural zero when every one is."""
-    if all(lie.is_zero(x) for x in xs):
-        return 0
-    return jnp.stack([jnp.broadcast_to(lie.as_array(x), ()) for x in xs])
-
-
-def _columns(raw: np.ndarray, inv_length, dtype) -> list[tuple]:
-    """``magnus.scaled_columns`` for per-sample raw bases (n_c, 6, n): (n_c,) scalars."""
-    return [tuple(0 if not np.any(raw[:, r, k]) else
-                  (jnp.asarray(raw[:, r, k], dtype) * inv_length if r < 3 else jnp.asarray(raw[:, r, k], dtype))
-                  for r in range(6)) for k in range(raw.shape[2])]
-
-
-def _rows(pt: Point, base: np.ndarray, n: int):
-    """A stacked point's (R, p, J, eta) at grid rows ``base``, as (n_c,) scalars and n Jacobian columns."""
-    sel = lambda x: 0 if lie.is_zero(x) else lie.as_array(x)[base]  # noqa: E731
-    R = tuple(tuple(sel(a) for a in row) for row in pt.R)
-    J = [zeros(6) if pt.cols[k] < 0 else
-         tuple(0 if lie.is_zero(Jr) else lie.as_array(Jr)[base, pt.cols[k]] for Jr in pt.J) for k in range(n)]
-    return R, tuple(sel(a) for a in pt.p), J, tuple(sel(a) for a in pt.eta)
-
-
-def _soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, qd):
-    """Pose and twist at every contact sample of soft link ``li``, each sample one Magnus step
-    (as ``kinematics._soft_link``'s) from the grid point before it, all samples at once: the
-    scalars are (n_c,) arrays. Returns (R, p, eta) in scalar algebra and ``pull``: body wrenches
-    at the samples (6 scalars) -> J^T w per sample (n scalars), J's columns never formed (the
-    step's transpose carries the wrench back instead, one vector instead of n columns)."""
-    grid = grid_of(robot, li)
-    Xc = np.asarray(robot.contact.material_points(link))
-    n_c = len(Xc)
-    base = np.clip(np.searchsorted(grid.X, Xc, side="right") - 1, 0, len(grid.X) - 1)
-    dX = Xc - grid.X[base]
-    grid_pts = [pt for pt in points if pt.link == li and pt.kind == "soft"]
-    if grid_pts[0].rows:  # a scanned link: one stacked point, its rows the grid points
-        R, p, J, eta = _rows(grid_pts[0], base, robot.n_dofs)
-    else:
-        pick = [grid_pts[i] for i in base]
-        R = tuple(tuple(_stack([pt.R[a][b] for pt in pick], n_c) for b in range(3)) for a in range(3))
-        p = tuple(_stack([pt.p[a] for pt in pick], n_c) for a in range(3))
-        eta = tuple(_stack([pt.eta[a] for pt in pick], n_c) for a in range(6))
-        J = [tuple(_stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
-    j0, s0, end = robot.dof_slices()[li]
-    qs, qds = q[s0:end], qd[s0:end]
-    dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *qds, *p)))  # float32 runs stay float32
-    L = link.length
-    x1, x2 = grid.X[base] + ZANNA[0] * dX, grid.X[base] + ZANNA[1] * dX
-    P1 = _columns(np.stack([link.basis.raw(x) for x in x1]), 1.0 / L, dtype)
-    P2 = _columns(np.stack([link.basis.raw(x) for x in x2]), 1.0 / L, dtype)
-    xi1, xi2 = strain(P1, qs, rest_strain(link, x1)), strain(P2, qs, rest_strain(link, x2))
-    h = jnp.asarray(dX, dtype) * L
-    R_s, p_s, _, S_qd, _ = magnus(xi1, xi2, strain_rate(P1, qds), strain_rate(P2, qds), [], [], h,
-                                  with_psi=False)
-    R, p, _, eta, _ = advance((R, p, [], eta, zeros(6)), R_s, p_s, [], [], S_qd, None, False)
-    c, half_h = lie.mul(lie.SQRT3 / 12.0, lie.mul(h, h)), lie.mul(0.5, h)
-    O = lie.vadd(lie.vscale(half_h, lie.vadd(xi1, xi2)), lie.vscale(c, lie.ad(xi1, xi2)))  # as magnus'
-
-    def pull(w):
-        # J = Ad_step^-1 (J_before + T(O) Z) with magnus' Z = h/2 (P1 + P2) + c (ad_xi1 P2 - ad_xi2 P1)
-        wb = lie.ad_inv_transpose(R_s, p_s, w)
-        z = lie.dexp_transpose(O, wb)
-        z1, z2 = lie.ad_transpose(xi1, z), lie.ad_transpose(xi2, z)
-        terms = [lie.dot(col, wb) for col in J]
-        for k, (a, b) in enumerate(zip(P1, P2)):
-            own = lie.add(lie.mul(half_h, lie.dot(lie.vadd(a, b), z)),
-                          lie.mul(c, lie.sub(lie.dot(b, z1), lie.dot(a, z2))))
-            terms[s0 + k] = lie.add(terms[s0 + k], own)
-        return terms
-
-    return R, p, eta, pull
-
-
-def _arrays(R, p, eta, n_c: int):
-    full = lambda x: jnp.broadcast_to(lie.as_array(x), (n_c,))  # noqa: E731
-    return (jnp.stack([jnp.stack([full(a) for a in row], -1) for row in R], -2),
-            jnp.stack([full(a) for a in p], -1), jnp.stack([full(a) for a in eta], -1))
-
-
-def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, list]:
+def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, list, Any]:
     """The contact at every sample: (generalized force, n scalars; world forces, one (n_c, 3)
-    per soft link and one (3,) per site, N; gaps likewise, m). q, qd: n scalars each."""
+    per soft link and one (3,) per site, N; gaps likewise, m; the penalty's energy, J).
+    q, qd: n scalars each."""
     contact = robot.contact
     F: list = [0] * robot.n_dofs
     forces, gaps = [], []
+    energy: Any = 0.0
     for li, link in enumerate(robot.links):
         if not isinstance(link, SoftLink):
             continue
         Xc = np.asarray(contact.material_points(link))
         n_c = len(Xc)
-        Rs, ps, etas, pull = _soft_samples(robot, li, link, points, q, qd)
-        R, p, eta = _arrays(Rs, ps, etas, n_c)
+        Rs, ps, etas, pull = samples.soft_samples(robot, li, link, points, q, qd)
+        R, p, eta = samples.arrays(Rs, ps, etas, n_c)
         half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
-        w, f, g = law(p, R, eta, _radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
+        w, f, g, e = law(p, R, eta, samples.radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
         terms = pull(tuple(w[:, k] for k in range(6)))
         live = [j for j, x in enumerate(terms) if not lie.is_zero(x)]
         if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
@@ -298,30 +243,23 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
                 F[j] = lie.add(F[j], Fs[k])
         forces.append(f)
         gaps.append(g)
+        energy = energy + jnp.sum(e)
     n = len(robot.links)
     for site in contact.sites:
         link = robot.links[site.link % n]
         pt = next(x for x in points if x.link == site.link % n and x.kind == "rigid")
-        R, p, eta = (a[0] for a in _arrays(pt.R, pt.p, pt.eta, 1))
+        R, p, eta = (a[0] for a in samples.arrays(pt.R, pt.p, pt.eta, 1))
         d = jnp.asarray(site.offset, p.dtype) - jnp.asarray(link.com, p.dtype)  # from the CoM, body frame
         eta_s = jnp.concatenate([eta[:3], eta[3:] + jnp.cross(eta[:3], d)])
-        w, f, g = law(p + R @ d, R, eta_s, jnp.asarray(site.radius, p.dtype), None, None, contact.obstacles,
+        w, f, g, e = law(p + R @ d, R, eta_s, jnp.asarray(site.radius, p.dtype), None, None, contact.obstacles,
                       contact.site, t)
         w = jnp.concatenate([w[:3] + jnp.cross(d, w[3:]), w[3:]])  # moved to the CoM
         for j, col in enumerate(pt.J):
             F[j] = lie.add(F[j], lie.dot(col, tuple(w[k] for k in range(6))))
         forces.append(f[None])
         gaps.append(g[None])
-    return F, forces, gaps
-
-
-def _sum(x):
-    return 0 if lie.is_zero(x) else jnp.sum(x)
-
-
-def _radius(link: SoftLink, X, dtype):
-    half = link.radius if link.shape == "circle" else 0.5 * jnp.hypot(link.width, link.height)
-    return half * (1.0 + (link.taper - 1.0) * jnp.asarray(X, dtype))
+        energy = energy + e
+    return F, forces, gaps, energy
 
 
 def report(robot: Robot, q, qd, t) -> tuple[jax.Array, jax.Array]:
@@ -332,8 +270,33 @@ def report(robot: Robot, q, qd, t) -> tuple[jax.Array, jax.Array]:
         return jnp.zeros((0, 3), q.dtype), jnp.zeros((0,), q.dtype)
     n = robot.n_dofs
     qs, qds = [q[i] for i in range(n)], [qd[i] for i in range(n)]
-    _, forces, gaps = evaluate(robot, forward(robot, qs, qds, with_psi=False, jacobian=False), qs, qds, t)
+    _, forces, gaps, _ = evaluate(robot, forward(robot, qs, qds, with_psi=False, jacobian=False), qs, qds, t)
     return jnp.concatenate(forces), jnp.concatenate(gaps)
+
+
+def energy(robot: Robot, q, t=0.0) -> jax.Array:
+    """The penalty's elastic energy (J) at coordinates q (n,): k Phi integrated over every
+    piece of rod, plus k Phi(g) per site. Its gradient is minus the contact force without
+    damping and friction. Zero without ``Robot.contact``."""
+    if robot.contact is None:
+        return jnp.zeros((), q.dtype)
+    n = robot.n_dofs
+    qs, qds = [q[i] for i in range(n)], [jnp.zeros_like(q[i]) for i in range(n)]
+    return jnp.asarray(evaluate(robot, forward(robot, qs, qds, with_psi=False, jacobian=False), qs, qds, t)[3])
+
+
+def site_positions(robot: Robot, q) -> jax.Array:
+    """World position (n_sites, 3) of every ``ContactSite`` at q (n,)."""
+    n, n_links = robot.n_dofs, len(robot.links)
+    qs = [q[i] for i in range(n)]
+    points = forward(robot, qs, [jnp.zeros_like(x) for x in qs], with_psi=False, jacobian=False)
+    out = []
+    for site in robot.contact.sites:
+        link = robot.links[site.link % n_links]
+        pt = next(x for x in points if x.link == site.link % n_links and x.kind == "rigid")
+        R, p, _ = (a[0] for a in samples.arrays(pt.R, pt.p, pt.eta, 1))
+        out.append(p + R @ (jnp.asarray(site.offset, q.dtype) - jnp.asarray(link.com, q.dtype)))
+    return jnp.stack(out)
 
 
 def sites(robot: Robot) -> list[tuple[int, Any]]:
@@ -361,6 +324,12 @@ def check(robot: Robot) -> None:
         nonnegative(f"{name}.damping", pen.damping)
         positive(f"{name}.smoothing", pen.smoothing)
         nonnegative(f"{name}.friction", pen.friction)
+        if pen.static_friction is not None:
+            nonnegative(f"{name}.static_friction", pen.static_friction)
+            if concrete((pen.friction, pen.static_friction)):
+                require(bool(np.all(np.asarray(pen.static_friction) >= np.asarray(pen.friction))),
+                        f"{name}.static_friction", pen.static_friction,
+                        f"None or a number >= {name}.friction (mu_s >= mu_k)")
         positive(f"{name}.slip_speed", pen.slip_speed)
     require(isinstance(c.obstacles, tuple), "contact.obstacles", c.obstacles, "a tuple of obstacles")
     for k, obs in enumerate(c.obstacles):
@@ -401,4 +370,5 @@ def check(robot: Robot) -> None:
         nonnegative(f"{name}.radius", site.radius, ())
 
 
-__all__ = ["Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box", "law", "points_for", "sites"]
+__all__ = ["Contact", "ContactSite", "Penalty", "Plane", "Sphere", "Capsule", "Box", "energy", "law", "points_for",
+           "sites"]

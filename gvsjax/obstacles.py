@@ -5,11 +5,14 @@ optional ``motion`` (static) is a law ``t -> (3,)`` translating the obstacle
 (m), whose velocity is taken by forward-mode autodiff.
 
 Each obstacle answers one question for a straight piece of the rod's
-centreline, ``x(u) = p + u t`` for ``u`` in ``[lo, hi]`` (m): where along it
-the contact acts (``u*``), the signed distance ``g`` from the centreline there
-to the obstacle's surface, the outward normal there, and the *overlap
-profile*, so that the contact law can integrate a penalty per unit length over
-the piece in closed form. All functions broadcast over leading axes.
+centreline, ``x(u) = p + u t`` for ``u`` in ``[lo, hi]`` (m): the point ``u*``
+of the piece nearest it, the signed distance ``g`` from the centreline there to
+the obstacle's surface and the outward normal there (where damping and
+friction act), and the *gap profile* along the piece, linear (planes, box
+faces) or a parabola (spheres, capsules), whose integral is the penalty's
+energy (``gvsjax.penetration``). The profile's parameters are smooth functions
+of the piece's pose, so the law's forces, their derivatives, are exact. All
+functions broadcast over leading axes.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import jax.numpy as jnp
 from flax import struct
 
 TINY = 1e-12  # m: keeps norms and their gradients finite at zero distance
-FLAT = 1e6  # m: the profile radius standing for "flat" (a plane, a parallel capsule)
+LEAST_BEND = 1e-9  # the least profile curvature, times the radii: a capsule parallel to the piece
 
 
 def _norm(v):
@@ -45,19 +48,19 @@ def _shift(motion: Callable | None, t, dtype) -> tuple[Any, Any]:
 class Piece(NamedTuple):
     """An obstacle's answer for one rod piece (shapes: the broadcast leading axes).
 
-    u: where the force acts along the piece (m); gap: signed distance from the
+    u: the piece's point nearest the obstacle (m); gap: signed distance from the
     centreline there to the surface (m; subtract the rod's radius for the
-    contact gap); normal (..., 3): unit, from the obstacle towards the rod;
-    curvature: of the gap along the piece, gap ~ gap_min + curvature (u - centre)^2 / 2 (1/m;
-    0 when flat);
-    centre: where along the (infinite) piece the profile peaks (m);
-    slope: d(gap)/du along the piece for a flat profile; velocity (3,): the
-    obstacle's translational velocity (m/s).
+    contact gap); normal (..., 3): unit, from the obstacle towards the rod, there;
+    the profile: a flat one is gap + slope (w - u) along the piece (slope: d gap / du),
+    a curved one floor + curvature (w - centre)^2 / 2 (floor: its least gap, m;
+    curvature 1/m; centre: its vertex along the infinite piece, m); velocity (3,):
+    the obstacle's translational velocity (m/s).
     """
 
     u: Any
     gap: Any
     normal: Any
+    floor: Any
     curvature: Any
     centre: Any
     slope: Any
@@ -73,13 +76,12 @@ class Plane:
     normal: Any = (0.0, 1.0, 0.0)
     motion: Any = struct.field(pytree_node=False, default=None)
 
-    def piece(self, p, t, lo, hi, time) -> Piece:
+    def piece(self, p, t, lo, hi, time, rod_radius=0.0) -> Piece:
         x0, v = _shift(self.motion, time, p.dtype)
         n = jnp.asarray(self.normal, p.dtype) / _norm(jnp.asarray(self.normal, p.dtype))
         gap = _dot(p - (jnp.asarray(self.point, p.dtype) + x0), n)
         zero = jnp.zeros_like(gap)
-        # the gap is linear along the piece: the law integrates it exactly; the force acts at u = 0
-        return Piece(zero, gap, jnp.broadcast_to(n, p.shape), zero, zero, _dot(t, n), v)
+        return Piece(zero, gap, jnp.broadcast_to(n, p.shape), gap, zero, zero, _dot(t, n), v)
 
 
 @struct.dataclass
@@ -90,15 +92,16 @@ class Sphere:
     radius: Any = 0.1
     motion: Any = struct.field(pytree_node=False, default=None)
 
-    def piece(self, p, t, lo, hi, time) -> Piece:
+    def piece(self, p, t, lo, hi, time, rod_radius=0.0) -> Piece:
         x0, v = _shift(self.motion, time, p.dtype)
         c = jnp.asarray(self.centre, p.dtype) + x0
         centre = _dot(c - p, t)  # the piece's nearest approach to c, unclamped
         u = jnp.clip(centre, lo, hi)
         d = p + u[..., None] * t - c
         dist = _norm(d)
-        # along the piece the centreline's distance to c grows like sqrt(dist^2 + u^2)
-        return Piece(u, dist - self.radius, d / dist[..., None], 1.0 / dist, centre, jnp.zeros_like(dist), v)
+        curv = sphere_curvature(self.radius, rod_radius)
+        return Piece(u, dist - self.radius, d / dist[..., None], anchored_floor(dist - self.radius, curv, u, centre),
+                     curv, centre, jnp.zeros_like(dist), v)
 
 
 @struct.dataclass
@@ -111,17 +114,34 @@ class Capsule:
     radius: Any = 0.02
     motion: Any = struct.field(pytree_node=False, default=None)
 
-    def piece(self, p, t, lo, hi, time) -> Piece:
+    def piece(self, p, t, lo, hi, time, rod_radius=0.0) -> Piece:
         x0, v = _shift(self.motion, time, p.dtype)
         a = jnp.asarray(self.start, p.dtype) + x0
         e = jnp.asarray(self.end, p.dtype) - jnp.asarray(self.start, p.dtype)
         ee = _dot(e, e)
         r0 = p - a
-        u, sigma, centre, sin2 = segment_closest(_dot(t, e), _dot(t, r0), _dot(e, r0), ee, lo, hi)
+        te, b2 = _dot(t, e), _dot(e, r0)
+        u, sigma, centre, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
         d = r0 + u[..., None] * t - sigma[..., None] * e
         dist = _norm(d)
-        return Piece(u, dist - self.radius, d / dist[..., None], capsule_curvature(sigma, sin2, dist), centre,
-                     jnp.zeros_like(dist), v)
+        curv = sphere_curvature(self.radius, rod_radius) * capsule_bend(te, b2, ee, sin2, lo, hi,
+                                                                        self.radius + rod_radius)
+        return Piece(u, dist - self.radius, d / dist[..., None], anchored_floor(dist - self.radius, curv, u, centre),
+                     curv, centre, jnp.zeros_like(dist), v)
+
+
+def sphere_curvature(radius, rod_radius):
+    """The profile's curvature past a ball of ``radius`` (1/m): 1 / (radius + rod radius), so the
+    parabola has the overlap's chord of a shallow contact to second order (and overestimates a
+    deep one's, never shrinking as the rod goes deeper)."""
+    return 1.0 / (radius + rod_radius)
+
+
+def anchored_floor(gap, curvature, u, centre):
+    """The parabola's least gap, so that it passes through the true ``gap`` at the piece's nearest
+    point u (the vertex itself when inside the piece). C^1 in the pose as u leaves the vertex:
+    the gap is stationary in u there."""
+    return gap - 0.5 * curvature * (u - centre) ** 2
 
 
 def segment_closest(te, b1, b2, ee, lo, hi):
@@ -137,11 +157,16 @@ def segment_closest(te, b1, b2, ee, lo, hi):
     return u, jnp.clip((u * te + b2) / ee, 0.0, 1.0), centre, sin2
 
 
-def capsule_curvature(sigma, sin2, dist):
-    """Along the piece the distance to the axis grows like sqrt(dist^2 + u^2 sin^2): a crossing bar
-    is a profile of curvature sin^2 / dist; past the capsule's ends it is a sphere's, 1 / dist."""
-    inside = (sigma > 0.0) & (sigma < 1.0)
-    return jnp.where(inside, jnp.maximum(sin2, 1.0 / FLAT), 1.0) / dist
+def capsule_bend(te, b2, ee, sin2, lo, hi, reach):
+    """The capsule's profile curvature over a ball's: along a piece crossing the cylinder at
+    angle theta the distance to the axis grows like sqrt(dist^2 + u^2 sin^2 theta), so sin^2;
+    past an end cap a ball's, 1. Blended (smoothstep) as the piece's extent, projected on the
+    axis, leaves the segment by up to ``reach`` (m), so the energy stays continuous."""
+    s_lo, s_hi = (b2 + lo * te) / ee, (b2 + hi * te) / ee
+    past = jnp.maximum(jnp.maximum(jnp.minimum(s_lo, s_hi) - 1.0, -jnp.maximum(s_lo, s_hi)), 0.0)
+    x = jnp.minimum(past * jnp.sqrt(ee) / reach, 1.0)
+    blend = x * x * (3.0 - 2.0 * x)
+    return jnp.maximum(sin2 + (1.0 - sin2) * blend, LEAST_BEND)
 
 
 @struct.dataclass
@@ -168,13 +193,14 @@ class Box:
         n_local = jnp.where(is_out[..., None], outside / d_out[..., None], face)
         return jnp.where(is_out, d_out, worst), n_local @ Rb.T
 
-    def piece(self, p, t, lo, hi, time) -> Piece:
+    def piece(self, p, t, lo, hi, time, rod_radius=0.0) -> Piece:
         x0, v = _shift(self.motion, time, p.dtype)
         centre = _dot(jnp.asarray(self.centre, p.dtype) + x0 - p, t)
         u = jnp.clip(centre, lo, hi)
         gap, n = self.sdf(p + u[..., None] * t, x0)
-        # faces are flat: the law spreads the penalty over the piece (linear in u across a face)
-        return Piece(u, gap, n, jnp.zeros_like(gap), jnp.zeros_like(gap), _dot(t, n), v)
+        # faces are flat: the gap is linear along the piece across the face at u
+        zero = jnp.zeros_like(gap)
+        return Piece(u, gap, n, zero, zero, zero, _dot(t, n), v)
 
 
 OBSTACLES = (Plane, Sphere, Capsule, Box)

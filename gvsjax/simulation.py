@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -80,7 +81,9 @@ def simulate(
     integrator: "rk4" (default), "midpoint", "euler", "imex" or "ars443"
     (see ``gvsjax.integrators``). save_every: keep every k-th state.
     check_stability: with a concrete ``dt``, reject a step beyond the
-    integrator's linear stability limit at q0 (``gvsjax.stability``).
+    integrator's linear stability limit at q0, the contact penalty included
+    (``gvsjax.stability``). A run that goes non-finite anyway is marked in
+    ``Trajectory.finite``, and an eager call warns (RuntimeWarning).
 
     dtype: jnp.float64 (default) or jnp.float32, the precision of the whole
     computation. float32 runs ~2.5x the throws/s of a batch on a CPU (twice
@@ -114,10 +117,7 @@ def simulate(
     strain_law, strain_value = inputs.strain_force_law(robot, strain_force)
     rest_law, rest_value = inputs.rest_strain_law(robot, rest_strain)
     if check_stability and concrete(dt) and concrete(q0) and inputs.robot_is_concrete(robot):
-        limit = stable_step_estimate(robot, integrator, np.asarray(q0, dtype=float))
-        require(float(dt) <= limit, "dt", float(dt),
-                f"(0, {limit:.4g}] s: the {integrator} stability limit estimated at q0 "
-                "(or choose integrator='imex' or 'ars443')")
+        _check_step(robot, integrator, float(dt), np.asarray(q0, dtype=float))
     if control is not None:
         require(n_steps % control.every == 0, "control_every", control.every,
                 f"a divisor of n_steps={n_steps} (whole control periods)")
@@ -127,10 +127,37 @@ def simulate(
         robot = jax.tree_util.tree_map(
             lambda x: x.astype(dtype) if hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.floating) else x, robot)
     run = _run.__wrapped__ if _building_a_program() else _run  # type: ignore[attr-defined]
-    return run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
-                jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
-                integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law, rest_law),
-                control=control)
+    traj = run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
+               jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
+               integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law, rest_law),
+               control=control)
+    _warn_if_diverged(robot, traj, integrator)
+    return traj
+
+
+def _check_step(robot: Robot, integrator: str, dt: float, q0: np.ndarray) -> None:
+    """Refuse a dt beyond the integrator's stability limit at q0, naming the contact when its
+    penalty is what sets the limit."""
+    limit = stable_step_estimate(robot, integrator, q0)
+    if dt <= limit:
+        return
+    if stable_step_estimate(robot, integrator, q0, with_contact=False) >= dt:
+        require(False, "dt", dt, f"(0, {limit:.4g}] s: the {integrator} stability limit of the explicit contact "
+                "penalty pressed deep (k / (rho A) per soft link; gvsjax.stability); lower contact.rod.stiffness, "
+                "or pass check_stability=False for a contact known to stay short")
+    require(False, "dt", dt, f"(0, {limit:.4g}] s: the {integrator} stability limit estimated at q0 "
+            "(or choose integrator='imex' or 'ars443')")
+
+
+def _warn_if_diverged(robot: Robot, traj: Trajectory, integrator: str) -> None:
+    """An eager run that went non-finite says so (under jit or vmap: ``Trajectory.finite``)."""
+    if not concrete(traj.finite) or bool(np.all(np.asarray(traj.finite))):
+        return
+    t = float(np.asarray(traj.t)[np.argmin(np.asarray(traj.finite))])
+    cause = ("; with contact an explicit penalty too stiff for the step is the usual cause "
+             "(gvsjax.stability.stable_step_estimate)" if robot.contact is not None else "")
+    warnings.warn(f"simulate ({integrator}): the state is non-finite from t = {t:.6g} s on{cause}",
+                  RuntimeWarning, stacklevel=3)
 
 
 def _building_a_program() -> bool:
@@ -248,4 +275,5 @@ def _assemble(robot, system, t, qu, qdu, helds) -> Trajectory:
     touch, gap = jax.vmap(lambda s, x, v: contact.report(robot, x, v, s))(t, q, qd)
     return Trajectory(t=t, q=q, qd=qd, tip=tip, tip_velocity=tip_vel, joint_torque=torque,
                       tendon_force=tension, joint_force=force, wrench=wrench, contact_force=touch,
-                      contact_gap=gap, in_contact=jnp.any(gap < 0, axis=-1))
+                      contact_gap=gap, in_contact=jnp.any(gap < 0, axis=-1),
+                      finite=jnp.all(jnp.isfinite(q), axis=-1) & jnp.all(jnp.isfinite(qd), axis=-1))

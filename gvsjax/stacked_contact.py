@@ -15,22 +15,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from gvsjax.obstacles import TINY, Capsule, Sphere, capsule_curvature, segment_closest
-
-
-def smooth_depth(gap, l):
-    return l * jax.nn.softplus(-gap / l)
-
-
-def curved_area(gap, curv, u, centre, lo, hi, l):
-    """For a gap growing like curv (w - centre)^2 / 2 about its minimum at ``centre`` (gap at u):
-    the integral over [lo, hi] of the depth (its peak smoothed), the length where it is
-    positive, and u (where the force acts)."""
-    peak = smooth_depth(gap - 0.5 * curv * (u - centre) ** 2, l)
-    half = jnp.sqrt(2.0 * peak / curv + TINY * TINY)
-    a = jnp.clip(centre - half, lo, hi)
-    b = jnp.clip(centre + half, lo, hi)
-    return peak * (b - a) - curv * ((b - centre) ** 3 - (a - centre) ** 3) / 6.0, b - a, u
+from gvsjax import penetration
+from gvsjax.obstacles import TINY, Capsule, Sphere, anchored_floor, capsule_bend, segment_closest, sphere_curvature
 
 
 def _dot(a, b):
@@ -41,52 +27,71 @@ def _cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _piece(obs, p, t, lo, hi):
-    """(u, gap, normal, curvature, centre) of ``Sphere.piece`` / ``Capsule.piece``, p and t three
-    (n_c, 1) arrays, the stack's leaves (m, ...)."""
+def _norm(d):
+    return jnp.sqrt(_dot(d, d) + TINY * TINY)
+
+
+def _piece(obs, p, t, lo, hi, r):
+    """(u, gap, normal, floor, curvature, centre) of ``Sphere.piece`` / ``Capsule.piece``, p and t
+    three (n_c, m) arrays, the stack's leaves (m, ...), r the rod's radius."""
     dtype = p[0].dtype
+    radius = jnp.asarray(obs.radius, dtype)
     if isinstance(obs, Sphere):
         c = jnp.asarray(obs.centre, dtype)
         cp = tuple(c[:, i] - p[i] for i in range(3))
         centre = _dot(cp, t)
         u = jnp.clip(centre, lo, hi)
         d = tuple(p[i] + u * t[i] - c[:, i] for i in range(3))
-        dist = jnp.sqrt(_dot(d, d) + TINY * TINY)
-        return u, dist - jnp.asarray(obs.radius, dtype), tuple(x / dist for x in d), 1.0 / dist, centre
+        dist = _norm(d)
+        curv = sphere_curvature(radius, r)
+        floor = anchored_floor(dist - radius, curv, u, centre)
+        return u, dist - radius, tuple(x / dist for x in d), floor, curv, centre
     a = jnp.asarray(obs.start, dtype)
     e_arr = jnp.asarray(obs.end, dtype) - a
     e = tuple(e_arr[:, i] for i in range(3))
     ee = _dot(e, e)
     r0 = tuple(p[i] - a[:, i] for i in range(3))
-    u, sigma, centre, sin2 = segment_closest(_dot(t, e), _dot(t, r0), _dot(e, r0), ee, lo, hi)
+    te, b2 = _dot(t, e), _dot(e, r0)
+    u, sigma, centre, sin2 = segment_closest(te, _dot(t, r0), b2, ee, lo, hi)
     d = tuple(r0[i] + u * t[i] - sigma * e[i] for i in range(3))
-    dist = jnp.sqrt(_dot(d, d) + TINY * TINY)
-    curv = capsule_curvature(sigma, sin2, dist)
-    return u, dist - jnp.asarray(obs.radius, dtype), tuple(x / dist for x in d), curv, centre
+    dist = _norm(d)
+    curv = sphere_curvature(radius, r) * capsule_bend(te, b2, ee, sin2, lo, hi, radius + r)
+    return u, dist - radius, tuple(x / dist for x in d), anchored_floor(dist - radius, curv, u, centre), curv, centre
 
 
 def stacked_law(obs: Any, p, tangent, omega, vel, radius, lo, hi, pen) -> tuple:
     """World force (3,) and moment about the centre (3,) on every piece from a stack of static
-    spheres or capsules (each component (n_c,)), and each piece's smallest gap (n_c,).
+    spheres or capsules (each component (n_c,)), each piece's smallest gap (n_c,) and its
+    penalty energy (n_c,).
 
     p, tangent, omega, vel: (n_c, 3) world; radius, lo, hi: (n_c,) m (``contact.law``)."""
     assert isinstance(obs, (Sphere, Capsule)) and obs.motion is None
-    col = lambda x: tuple(x[..., i, None] for i in range(3))  # noqa: E731
+    m = jnp.shape(obs.radius)[0]
+    col = lambda x: tuple(jnp.broadcast_to(x[..., i, None], x.shape[:-1] + (m,)) for i in range(3))  # noqa: E731
     p, t, omega, vel = col(p), col(tangent), col(omega), col(vel)
     r, lo, hi = radius[..., None], lo[..., None], hi[..., None]
-    l = pen.smoothing
-    u, gap, n, curv, centre = _piece(obs, p, t, lo, hi)
+    l, k = pen.smoothing, pen.stiffness
+
+    def profile(p, t):
+        u, gap, n, floor, curv, centre = _piece(obs, p, t, lo, hi, r)
+        return (floor - r, curv, centre), (u, gap, n)
+
+    (floor, curv, centre), pull, (u, gap, n) = jax.vjp(profile, p, t, has_aux=True)
+    energy, I0, I2, I_chi, phi_lo, phi_hi = penetration.curved(floor, curv, lo - centre, hi - centre, l)
+    push = k * I0
+    d_p, d_t = pull((-push, -k * I2, k * (phi_lo - phi_hi)))
     g = gap - r
-    area, length, u = curved_area(g, curv, u, centre, lo, hi, l)
-    chi = jax.nn.sigmoid(-g / l)
     arm = tuple(u * t[i] - r * n[i] for i in range(3))
     w_arm = _cross(omega, arm)
     v_rel = tuple(vel[i] + w_arm[i] for i in range(3))
     v_n = _dot(v_rel, n)
-    f_n = jnp.maximum(pen.stiffness * area - pen.damping * chi * v_n * length, 0.0)
+    f_n = jnp.maximum(push - pen.damping * I_chi * v_n, 0.0)
     v_t = tuple(v_rel[i] - v_n * n[i] for i in range(3))
-    slip = jnp.sqrt(_dot(v_t, v_t) + pen.slip_speed**2)
-    f = tuple(f_n * (n[i] - pen.friction * v_t[i] / slip) for i in range(3))
-    m = _cross(arm, f)
+    mu_s = pen.friction if pen.static_friction is None else pen.static_friction
+    mu = f_n * penetration.friction_coefficient(_dot(v_t, v_t), mu_s, pen.friction, pen.slip_speed)
+    f = tuple((f_n - push) * n[i] - mu * v_t[i] for i in range(3))
+    m_el = _cross(t, d_t)
+    m_other = _cross(arm, f)
     total = lambda x: jnp.sum(x, axis=-1)  # noqa: E731
-    return tuple(total(x) for x in f), tuple(total(x) for x in m), jnp.min(g, axis=-1)
+    return (tuple(total(f[i] - d_p[i]) for i in range(3)), tuple(total(m_other[i] - m_el[i]) for i in range(3)),
+            jnp.min(g, axis=-1), total(k * energy))

@@ -18,7 +18,8 @@ class Trajectory:
     contact_force (m, n_c, 3): world force (N) the obstacles exert at each contact sample
     (``gvsjax.contact.sites`` lists them; n_c = 0 without ``Robot.contact``); contact_gap
     (m, n_c): each sample's smallest gap (m, negative when penetrating); in_contact (m,):
-    whether any sample penetrates.
+    whether any sample penetrates. finite (m,): whether every coordinate and velocity is
+    finite (False once a run has diverged, e.g. a step too large for a stiff contact).
     """
 
     t: jax.Array
@@ -33,3 +34,4 @@ class Trajectory:
     contact_force: jax.Array
     contact_gap: jax.Array
     in_contact: jax.Array
+    finite: jax.Array
