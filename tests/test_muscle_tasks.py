@@ -99,7 +99,8 @@ def test_bad_actuation_is_refused_before_compiling(env):
             arm3d.ArmParams(actuation="muscle", moment_max=bad)
     with pytest.raises(ValueError, match="ArmParams.tension_max"):
         arm3d.ArmParams().replace(tension_max=-1.0)
-    P = env.default_params()
+    P = env.train_params("box")  # the default's arm without its target table (a minute to build)
+    assert P.arm.actuation == "muscle" and P.targets == "box"
     tendon = P.replace(arm=arm3d.ArmParams())
     with pytest.raises(ValueError, match=r"track3d_muscle takes 12 actions, but ArmParams.actuation='tendon'"):
         env.reset(jax.random.PRNGKey(0), tendon)

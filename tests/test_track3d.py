@@ -72,7 +72,7 @@ def test_first_bending_frequency_matches_euler_bernoulli():
 
 
 def test_target_moves_at_its_speed_inside_the_box():
-    P = t3.Track3DParams()
+    P = t3.Track3DParams(targets="box")
     low, high = np.array(P.box_low), np.array(P.box_high)
 
     def walk(key):
@@ -94,6 +94,76 @@ def test_target_moves_at_its_speed_inside_the_box():
     # direction changes: turns (2.5% per step) and wall bounces; the box is crossed in ~2.4 s
     assert 0.05 < turned.mean() < 0.3
     assert p.std(axis=(0, 1)).min() > 0.25 * (high - low).min() / math.sqrt(12)
+
+
+def _walks(P, n: int, steps: int = 100, seed: int = 0):
+    """(n, steps + 1, 3) target positions and (n, steps, 3) velocities of ``n`` walks under jit(vmap)."""
+    def walk(key):
+        p, v = t3.start(key, P)
+
+        def body(carry, t):
+            p, v = t3.move(jax.random.fold_in(key, t), *carry, P)
+            return (p, v), (p, v)
+
+        ps, vs = jax.lax.scan(body, (p, v), jnp.arange(steps))[1]
+        return jnp.concatenate([p[None], ps]), vs
+
+    p, v = jax.jit(jax.vmap(walk))(jax.random.split(jax.random.PRNGKey(seed), n))
+    return np.asarray(p), np.asarray(v)
+
+
+def test_reachable_targets_stay_near_held_tips_under_jit_and_vmap(env):
+    """The default target set: every start and step of 64 walks lies in the box and within
+    ``reach_radius`` of a tip of the arm's static table (by brute force), moving at the target's
+    speed; a batched draw equals the single one; the same walks on the box leave the set often."""
+    P = env.default_params()
+    assert P.targets == "reachable" and P.holdable.shape[1] == 3 and env.train_params("box").targets == "box"
+    table = np.asarray(P.holdable)
+    p, v = _walks(P, 64)
+    flat = p.reshape(-1, 3)
+    d = np.sqrt(np.min(np.sum((flat[:, None, :] - table[None]) ** 2, -1), axis=1))
+    assert d.max() <= P.reach_radius + 1e-12
+    assert np.all(flat >= np.array(P.box_low) - 1e-12) and np.all(flat <= np.array(P.box_high) + 1e-12)
+    step = np.linalg.norm(np.diff(p, axis=1), axis=-1)
+    full = P.speed * P.arm.control_dt
+    # a wall shortens a step and a boundary with no direction out of it stops one: both stay rare
+    assert step.max() <= full + 1e-12 and step.mean() > 0.8 * full and np.mean(step < 1e-9) < 0.05
+    np.testing.assert_allclose(np.linalg.norm(v, axis=-1), P.speed, rtol=1e-12)
+    assert flat.std(axis=0).min() > 0.1  # it roams the part, not one corner of it
+    key = jax.random.split(jax.random.PRNGKey(0), 64)[5]
+    single = t3.start(key, P)[0]
+    np.testing.assert_array_equal(np.asarray(single), p[5, 0])
+    box = _walks(P.replace(targets="box"), 64)[0].reshape(-1, 3)
+    held = np.asarray(jax.vmap(t3.inside, in_axes=(0, None))(jnp.asarray(box), P))
+    assert held.mean() < 0.5  # the published box is mostly beyond the arm's static reach
+
+
+def test_bad_target_set_is_refused_before_compiling(env):
+    with pytest.raises(ValueError, match=r"Track3DParams.targets='boxes' is invalid: expected one of "
+                                         r"\['reachable', 'box'\]"):
+        t3.Track3DParams(targets="boxes")
+    with pytest.raises(ValueError, match=r"targets='all' is invalid: expected one of \['reachable', 'box'\]"):
+        t3.make_params(targets="all")
+    with pytest.raises(ValueError, match=r"unknown track3d parameter\(s\) \['holdable'\]"):
+        t3.make_params(targets="box", holdable=np.zeros((3, 3)))
+    key = jax.random.PRNGKey(0)
+    with pytest.raises(ValueError, match="holdable is None but targets='reachable' needs it"):
+        env.reset(key, t3.Track3DParams())
+    P = env.default_params()
+    for name in ("holdable", "starts"):
+        for bad in (np.zeros((4, 2)), np.zeros((0, 3))):
+            with pytest.raises(ValueError, match=rf"Track3DParams.{name}=.* expected shape \(p, 3\)"):
+                env.reset(key, P.replace(**{name: bad}))
+    for bad in (0.0, -0.01, float("nan")):
+        with pytest.raises(ValueError, match=r"Track3DParams.reach_radius=.* expected a finite number > 0"):
+            env.reset(key, P.replace(reach_radius=bad))
+    with pytest.raises(ValueError, match=r"train_targets='boxes' is invalid for task='track3d'; choose one of "
+                                         r"\['reachable', 'box'\]"):
+        env.train_params("boxes")
+    from gvsjax import train
+
+    with pytest.raises(ValueError, match="train_targets='sphere'"):
+        train.parse_args(["task=track3d", "train_targets=sphere"])
 
 
 def test_actions_map_to_opposing_nonnegative_tensions():

@@ -2,12 +2,14 @@
 
 The target moves at 0.5 m/s in x, y in [-0.6, 0.6] m, z in [0.3, 0.9] m, turning
 to a new uniformly random direction with probability 0.025 per control step and
-bouncing off the box's walls. The arm (``gv.soft_arm``: 1 m, base at the origin,
-along +z at rest, gravity along -z) starts at rest; the policy acts every 0.1 s
-for 10 s (100 steps) through its two tendon groups (``Track3D``) or through
-bending moments at six control points (``Track3DMuscle``; ``gvsjax.tasks.actuation``).
-Parts of the box lie beyond a 1 m arm's reach (its upper corners are 1.2 m from
-the base), so no policy follows the target everywhere.
+bouncing off the box's walls. By default (``targets="reachable"``) it stays in the
+part of the box within 3 cm of a tip the arm holds at rest under some action
+(``target``): most of the box is beyond what the actuation holds, and
+``targets="box"`` (the whole box) keeps it anyway. The arm (``gv.soft_arm``: 1 m,
+base at the origin, along +z at rest, gravity along -z) starts at rest; the policy
+acts every 0.1 s for 10 s (100 steps) through its two tendon groups (``Track3D``) or
+through bending moments at six control points (``Track3DMuscle``;
+``gvsjax.tasks.actuation``).
 
 Observation (38,) for the default arm: the tip's position (m) and velocity (m/s),
 the strain coordinates and rates (scaled, ``arm3d.arm_features``), the target's
@@ -32,11 +34,11 @@ from flax import struct
 
 from gvsjax.kinematics import tip_state
 from gvsjax.tasks import arm3d
-from gvsjax.tasks.arm3d import ArmParams
 from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.track3d import figures
-from gvsjax.tasks.track3d.params import Track3DParams
-from gvsjax.tasks.track3d.target import move, start
+from gvsjax.tasks.track3d.params import TARGET_SETS, Track3DParams
+from gvsjax.tasks.track3d.target import check as check_targets
+from gvsjax.tasks.track3d.target import make_params, move, start
 
 SETTLE_S = 2.0  # s: the "tracking" metrics skip the first seconds, when the arm leaves its rest pose
 
@@ -80,12 +82,24 @@ class Track3D(Environment):
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
     ppo_defaults = {**arm3d.PPO_DEFAULTS, "total_episodes": 24_000}
+    train_variants = TARGET_SETS  # train_targets=box: the whole published box
 
     def default_params(self) -> Track3DParams:
-        return Track3DParams()
+        """The target in the reachable part of the box (``target.make_params``)."""
+        return make_params()
+
+    def train_params(self, variant: str = "") -> Track3DParams:
+        """The default params, or those of the target set ``variant`` (one of ``TARGET_SETS``)."""
+        if variant and variant not in self.train_variants:
+            super().train_params(variant)  # raises, naming the choices
+        return self.default_params() if not variant else self._params(variant)
+
+    def _params(self, targets: str) -> Track3DParams:
+        return make_params(targets=targets)
 
     def _check(self, params: Track3DParams) -> None:
         arm3d.check_task(self, params.arm, params.episode_steps, other_obs=10 + self.action_size)
+        check_targets(params)
         w = params.action_rate_weight
         if isinstance(w, (int, float)) and not (np.isfinite(w) and w >= 0):
             raise ValueError(f"action_rate_weight={w!r} is invalid for {self.name}; expected a number >= 0")
@@ -192,7 +206,10 @@ class Track3DMuscle(Track3D):
     obs_size = 46  # and its 12 last actions
 
     def default_params(self) -> Track3DParams:
-        return Track3DParams(arm=ArmParams(actuation="muscle"), action_rate_weight=0.0)
+        return self._params("reachable")
+
+    def _params(self, targets: str) -> Track3DParams:
+        return make_params("muscle", targets, action_rate_weight=0.0)
 
 
 def distance_summary(d: np.ndarray) -> dict[str, float]:
