@@ -8,7 +8,8 @@ run, a page per task with every recorded run and its command, and an index of th
 Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs, their training, the
 command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
 JSON (``track3d_basis``, ``*_substeps``, ``reach_obstacles_steps``, ``throw3d_convergence``,
-``muscle_workspace``, ``curvature_arm_basis``, ``env_throughput``, ``sim``, ``benchmark_task_runs``).
+``muscle_workspace``, ``tendon_reachability``, ``curvature_arm_basis``, ``env_throughput``, ``sim``,
+``benchmark_task_runs``).
 
 Run it alone to print every table: ``python docs/gen_results.py [NAME ...]``.
 """
@@ -362,6 +363,32 @@ def tendon_arm(root: Path) -> str:
             "```bash\npython experiments/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
 
 
+def reachability_table(d: dict, policy) -> str:
+    """``experiments/tendon_reachability.py``'s JSON as a table: each row at the largest action sample,
+    how far its shares moved over the last doubling, and ``policy(task)``, the committed policy's result."""
+    what = {"box": "the published box (the policy's)", "reachable": "the reachable part (the default now)",
+            "table": "the held-out poses", "reset": "the task's own draws"}
+    rows = []
+    for row in d["rows"]:
+        sizes = list(row["by_samples"])
+        last, before = row["by_samples"][sizes[-1]], row["by_samples"][sizes[-2]]
+        keys = [k for k in last if k.startswith("within_")]
+        held = ", ".join(k[len("within_"):].replace("_", " & ").replace("deg", " deg").replace("cm", " cm")
+                         + f": {100 * last[k]:.1f}%" for k in keys)
+        moved = max(abs(last[k] - before[k]) for k in keys)
+        rows.append([row["task"], what[row["targets"]], f"{100 * last['median_m']:.1f} cm", held,
+                     f"{100 * moved:.1f} points ({sizes[-2]} -> {sizes[-1]} actions)",
+                     policy(row["task"]) if row["targets"] != "reachable" else ""])
+    return table(["task", "targets", "median distance to the nearest held tip", "targets held within",
+                  "change at the last doubling", "the committed policy (default, seed 0)"], rows)
+
+
+def tendon_reachability(root: Path) -> str:
+    d = load(root, "tendon_reachability.json")
+    return (reachability_table(d, lambda task: headline(root, task)) + "\n\nData: "
+            f"`benchmarks/tendon_reachability.json`.\n\n```bash\n{d['command'].strip()}\n```")
+
+
 STUDIES = {
     "track3d_basis": track3d_basis,
     "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/track3d_substeps.py "
@@ -375,6 +402,7 @@ STUDIES = {
     "curvature_arm_basis": curvature_arm_basis,
     "throw3d_convergence": throw3d_convergence,
     "muscle_workspace": muscle_workspace,
+    "tendon_reachability": tendon_reachability,
     "env_throughput": env_throughput,
     "sim": sim_throughput,
     "benchmark_task_runs": benchmark_task_runs,

@@ -18,7 +18,8 @@ measured against the nearest held tip (exact nearest neighbour, ``holdable.neare
   compile within 25 minutes on the shared 2 cores.
 
 Convergence: the same measures on nested prefixes of the action sample, each twice the
-last. ``--table`` prints the docs' markdown table from the JSON instead.
+last. ``--table`` prints the docs' table from the JSON instead (``docs/gen_results.py``,
+beside each task's committed policy from ``benchmarks/eval_<task>.json``).
 
     python experiments/tendon_reachability.py        # ~10 min on 2 shared cores; benchmarks/tendon_reachability.json
     python experiments/tendon_reachability.py --table
@@ -48,18 +49,6 @@ from gvsjax.tasks.track3d.env import SETTLE_S
 
 ROOT = Path(__file__).resolve().parents[1]
 TRACK_CM = (5.0, 10.0)  # track3d's reported shares
-# the committed policies' results beside which the bound is read (docs/tasks_3d.md's Results tables,
-# default runs, seed 0; track3d and its muscle variant trained and evaluated on the published box)
-POLICY = {
-    "track3d": "13.2% of the time within 5 cm, 36.1% within 10 cm; median 13.7 cm",
-    "track3d_muscle": "7.7% / 30.4%; median 15.0 cm",
-    "reach_pose": "79.8% within 5 cm & 10 deg, 37.5% within 2 cm & 5 deg (300k episodes: 100% / 98.7%)",
-    "reach_pose_muscle": "99.8% / 93.0%",
-    "reach_obstacles": "success 83.0% (seeds 1, 2: 92.9%, 94.7%)",
-    "reach_obstacles_2d": "success 85.8% (seeds 1, 2: 85.1%, 88.1%)",
-}
-
-
 def shares(d: np.ndarray, cm=TRACK_CM) -> dict:
     """Median distance (m) and the share within each of ``cm``."""
     return {"median_m": float(np.median(d)), **{f"within_{c:g}cm": float(np.mean(d < c / 100)) for c in cm}}
@@ -175,32 +164,17 @@ def run(args) -> dict:
     out["rows"] += obstacle_rows("reach_obstacles_2d", planar, [planar_n >> i for i in range(args.doublings, -1, -1)],
                                  args)
     for row in out["rows"]:
-        row["policy"] = POLICY[row["task"]] if row["targets"] != "reachable" else ""
         print(json.dumps({k: row[k] for k in ("task", "targets")}), json.dumps(row["by_samples"])[:400], flush=True)
     return out
 
 
-def _pct(x: float) -> str:
-    return f"{100 * x:.1f}%"
-
-
 def table(data: dict) -> str:
-    """The docs' markdown table of ``data`` (this script's JSON): each row at the largest sample,
-    with how much its first share moved over the last doubling."""
-    lines = ["| task | targets | median distance to the nearest held tip | targets held within | "
-             "change at the last doubling | the committed policy (default, seed 0) |", "|---|---|---|---|---|---|"]
-    for row in data["rows"]:
-        sizes = list(row["by_samples"])
-        last, before = row["by_samples"][sizes[-1]], row["by_samples"][sizes[-2]]
-        keys = [k for k in last if k.startswith("within_")]
-        held = ", ".join(f"{k[len('within_'):].replace('_', ' & ').replace('deg', ' deg').replace('cm', ' cm')}: "
-                         f"{_pct(last[k])}" for k in keys)
-        moved = max(abs(last[k] - before[k]) for k in keys)
-        what = {"box": "the published box (the policy's)", "reachable": "the reachable part (the default now)",
-                "table": "the held-out poses", "reset": "the task's own draws"}[row["targets"]]
-        lines.append(f"| {row['task']} | {what} | {100 * last['median_m']:.1f} cm | {held} | "
-                     f"{100 * moved:.1f} points ({sizes[-2]} -> {sizes[-1]} actions) | {row['policy']} |")
-    return "\n".join(lines)
+    """The docs' markdown table of ``data`` (this script's JSON) beside the committed policies' results
+    (``docs/gen_results.py``, which the docs site also uses)."""
+    sys.path.insert(0, str(ROOT / "docs"))
+    import gen_results
+
+    return gen_results.reachability_table(data, lambda task: gen_results.headline(ROOT, task))
 
 
 def main() -> None:

@@ -67,14 +67,19 @@ def test_equilibrium_poses_refuses_a_wrong_action_size():
         holdable.equilibrium_poses(arm3d.ArmParams(actuation="muscle"), np.zeros((3, 4)))
 
 
-def test_the_experiments_table_is_made_from_its_json():
-    """The docs' table: each row at the largest sample, the change over the last doubling."""
-    module = _experiment()
+def test_the_reachability_table_is_made_from_its_json():
+    """The docs' table (docs/gen_results.py): each row at the largest sample, the change over the last
+    doubling, the policy's result beside it; the experiment's shares."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "docs"))
+    import gen_results
+
     by = {"8": {"median_m": 0.1, "within_5cm": 0.2, "within_10cm": 0.5},
           "16": {"median_m": 0.08, "within_5cm": 0.25, "within_10cm": 0.52}}
-    data = {"rows": [{"task": "track3d", "targets": "box", "by_samples": by, "policy": "13%"}]}
-    line = module.table(data).splitlines()[-1]
+    data = {"rows": [{"task": "track3d", "targets": "box", "by_samples": by}]}
+    line = gen_results.reachability_table(data, lambda task: f"{task} 13%").splitlines()[-1]
     assert line == ("| track3d | the published box (the policy's) | 8.0 cm | 5 cm: 25.0%, 10 cm: 52.0% | "
-                    "5.0 points (8 -> 16 actions) | 13% |")
+                    "5.0 points (8 -> 16 actions) | track3d 13% |")
     d = np.array([0.01, 0.04, 0.06, 0.2])
-    assert module.shares(d) == {"median_m": 0.05, "within_5cm": 0.5, "within_10cm": 0.75}
+    assert _experiment().shares(d) == {"median_m": 0.05, "within_5cm": 0.5, "within_10cm": 0.75}
