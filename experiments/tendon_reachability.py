@@ -21,7 +21,7 @@ Convergence: the same measures on nested prefixes of the action sample, each twi
 last. ``--table`` prints the docs' table from the JSON instead (``docs/gen_results.py``,
 beside each task's committed policy from ``benchmarks/eval_<task>.json``).
 
-    python experiments/tendon_reachability.py        # ~10 min on 2 shared cores; benchmarks/tendon_reachability.json
+    python experiments/tendon_reachability.py        # ~45 min on 2 busy cores; benchmarks/tendon_reachability.json
     python experiments/tendon_reachability.py --table
 """
 
@@ -179,8 +179,8 @@ def table(data: dict) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--samples", type=int, default=32768, help="tendon actions (muscle: half, planar: 1/16)")
-    ap.add_argument("--doublings", type=int, default=3, help="nested prefixes, each half the next")
+    ap.add_argument("--samples", type=int, default=65536, help="tendon actions (muscle: half, planar: 1/16)")
+    ap.add_argument("--doublings", type=int, default=4, help="nested prefixes, each half the next")
     ap.add_argument("--episodes", type=int, default=500, help="track3d target walks (100 steps each)")
     ap.add_argument("--obstacle-targets", type=int, default=10000)
     ap.add_argument("--seed", type=int, default=0)
