@@ -94,7 +94,7 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
         env = make(task)
         for d in (d for d in runs if d["task"] == task):
             points = [c for c in d["curve"] if "episode_benchmark_return" in c]
-            label = f"{d['name']}{' +rel' if d['relative_obs'] else ''} s{d['seed']}"
+            label = f"{d['name']} s{d['seed']}"
             final = d["eval"]["discounted_return_average"]["mean"]
             total = d["timing"]["updates"] * d["config"]["num_envs"] * d["config"]["num_steps"]
             for ax, x_of, end in ((row[0], lambda c: c["update"], total),
