@@ -65,6 +65,7 @@ def env_keys(config: PPOConfig, key: jax.Array) -> jax.Array:
 
 
 def pair_up(half: jax.Array) -> jax.Array:
+    """``(N/2, ...)`` -> ``(N, ...)``: env i and i + N/2 get the same entry (antithetic pairs)."""
     return jnp.concatenate([half, half])
 
 
