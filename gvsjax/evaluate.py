@@ -1,6 +1,8 @@
-"""Evaluate a trained policy: its deterministic (mean) actions on fresh episodes.
+"""Evaluate a trained policy (its deterministic, mean actions) or a reference controller on fresh episodes.
 
     python -m gvsjax.evaluate checkpoint=RUN_DIR [n_targets=1000] [seed=S] [out=DIR] [task=NAME]
+    python -m gvsjax.evaluate task=NAME controller=mpc [horizon=10 iterations=10 learning_rate=0.1
+                              discount=1.0] [n_targets=100] [seed=S] [out=DIR]
 
 ``checkpoint`` is a run folder (holding checkpoint.ckpt) or the checkpoint
 file; ``task`` (optional) must match the checkpoint's. Writes into ``out``
@@ -10,6 +12,11 @@ per-episode table (basketball: ``eval_throws.csv``), its figures, and
 Episodes come from ``reset`` keys of ``seed``: use a seed the training did not
 use (the default, 1_000_003, is the one ``python -m gvsjax.train`` evaluates
 seed-0 runs with).
+
+``controller=mpc`` scores ``gvsjax.mpc.MPC`` (receding-horizon control by gradients
+through the simulator) instead of a checkpoint, on the same episodes; ``out`` then
+defaults to ``runs/mpc_<task>``, and eval.json adds the controller's settings and its
+wall time per control step.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ import csv
 import gc
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +37,9 @@ from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.tasks import EvalResult
 
 USAGE = __doc__.strip()
-KEYS: dict[str, Any] = {"task": "", "checkpoint": "", "n_targets": 1000, "seed": -1, "out": ""}
+KEYS: dict[str, Any] = {"task": "", "checkpoint": "", "n_targets": -1, "seed": -1, "out": "", "controller": "",
+                        "horizon": 10, "iterations": 10, "learning_rate": 0.1, "discount": 1.0}
+MPC_KEYS = ("horizon", "iterations", "learning_rate", "discount")
 
 
 def write_rows(path: Path, rows: dict[str, np.ndarray]) -> Path:
@@ -63,12 +73,48 @@ def evaluate_run(checkpoint, out, n_episodes: int = 1000, seed: int = 1_000_003)
     return summary
 
 
+def evaluate_controller(task: str, out, config, n_episodes: int = 100, seed: int = 1_000_003) -> dict:
+    """Evaluate ``gvsjax.mpc.MPC(config)`` on ``task``'s default params; write eval.json, the rows
+    and the figures to ``out``. Returns eval.json's dict (with ``controller`` and ``wall_s``)."""
+    from gvsjax import mpc
+    from gvsjax.tasks import make
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = make(task)
+    params = env.default_params()
+    start = time.perf_counter()
+    result: EvalResult = env.evaluate(params, mpc.MPC(env, params, config), n_episodes, seed)
+    wall = time.perf_counter() - start
+    steps = n_episodes * env.episode_length
+    summary = {"task": env.name, "controller": mpc.describe(config), "seed": seed, "wall_s": wall,
+               "wall_ms_per_control_step": 1e3 * wall / steps, **result.metrics}
+    (out / "eval.json").write_text(json.dumps(summary, indent=2))
+    write_rows(out / env.rows_file, result.rows)
+    env.figures(params, result, out)
+    return summary
+
+
 def parse_args(argv: list[str]) -> dict:
     args = {**KEYS, **keyvalue.parse(argv, {k: keyvalue.typed(v) for k, v in KEYS.items()})}
-    if not args["checkpoint"]:
-        raise ValueError("checkpoint=PATH is required (a run folder or its checkpoint.ckpt)")
-    if args["n_targets"] < 1:
-        raise ValueError(f"n_targets={args['n_targets']} is invalid; expected an int >= 1")
+    if args["controller"] not in ("", "mpc"):
+        raise ValueError(f"controller={args['controller']!r} is invalid; expected 'mpc' (or leave it out and give "
+                         "checkpoint=)")
+    if args["controller"]:
+        if args["checkpoint"]:
+            raise ValueError("give either checkpoint= (a trained policy) or controller=mpc, not both")
+        if not args["task"]:
+            raise ValueError("controller=mpc needs task=NAME")
+        from gvsjax import mpc
+        from gvsjax.tasks import make
+
+        make(args["task"])  # an unknown task's error, before anything compiles
+        args["mpc"] = mpc.MPCConfig(**{k: args[k] for k in MPC_KEYS})
+    elif not args["checkpoint"]:
+        raise ValueError("checkpoint=PATH is required (a run folder or its checkpoint.ckpt), or controller=mpc")
+    if args["n_targets"] < 1 and args["n_targets"] != -1:
+        raise ValueError(f"n_targets={args['n_targets']} is invalid; expected an int >= 1 (default: 1000 episodes "
+                         "for a checkpoint, 100 for controller=mpc)")
     if args["seed"] < -1:
         raise ValueError(f"seed={args['seed']} is invalid; expected an int >= 0 (or -1: 1_000_003)")
     return args
@@ -81,19 +127,32 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         args = parse_args(argv)
+        seed = args["seed"] if args["seed"] >= 0 else 1_000_003
+        if args["controller"]:
+            task = args["task"]
+            out = Path(args["out"] or f"runs/mpc_{task}")
+            n = 100 if args["n_targets"] < 0 else args["n_targets"]
+            result = evaluate_controller(task, out, args["mpc"], n, seed)
+            return _report(task, result, out)
         path = ckpt.resolve(args["checkpoint"])
         task = ckpt.load_raw(path)["task"]
         if args["task"] and task != args["task"]:
             raise ValueError(f"checkpoint is for task={task!r}, not {args['task']!r}")
         out = Path(args["out"]) if args["out"] else path.parent
-        seed = args["seed"] if args["seed"] >= 0 else 1_000_003
-        result = evaluate_run(path, out, args["n_targets"], seed)
+        result = evaluate_run(path, out, 1000 if args["n_targets"] < 0 else args["n_targets"], seed)
     except (ValueError, ckpt.CheckpointError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    return _report(task, result, out)
+
+
+def _report(task: str, result: dict, out: Path) -> int:
     from gvsjax.tasks import make
 
     print(make(task).summary(result))
+    if "wall_s" in result:
+        print(f"controller: {result['wall_s']:.0f} s, {result['wall_ms_per_control_step']:.1f} ms per control step "
+              "and episode (the batch's wall time, compilation included)")
     print(f"wrote into {out}/: eval.json, the per-episode table and the figures (see --help)")
     return 0
 

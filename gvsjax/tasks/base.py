@@ -37,7 +37,7 @@ import dataclasses
 import importlib
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import jax
 import jax.numpy as jnp
@@ -47,6 +47,22 @@ from gvsjax.model import PointLoad, PointMass, Robot, SoftLink
 
 PyTree = Any
 Policy = Callable[[jax.Array], jax.Array]  # (batch, obs_size) -> (batch, action_size), jittable
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """A controller that sees the environment's state and keeps a memory (``carry``), such as
+    ``gvsjax.mpc.MPC``; ``evaluate`` accepts one wherever it accepts a ``Policy``. All batched."""
+
+    def init(self, obs: jax.Array, state: Any) -> Any:
+        """The memory at an episode's start."""
+        ...
+
+    def act(self, carry: Any, obs: jax.Array, state: Any, t: jax.Array) -> tuple[jax.Array, Any]:
+        """``(actions (batch, action_size), next carry)`` at step ``t``."""
+        ...
+
+
 # (params, factor) -> params with one physical parameter multiplied by factor (a traced scalar)
 Scale = Callable[[PyTree, jax.Array], PyTree]
 
@@ -209,10 +225,15 @@ class Environment:
                              "float64 only")
         return params.replace(sim_dtype=sim_dtype)
 
+    def planning_params(self, params: PyTree) -> PyTree:
+        """The params a model-based controller (``gvsjax.mpc``) predicts with: ``params`` without
+        what it cannot know ahead, e.g. a moving target's random turns (default: ``params``)."""
+        return params
+
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: PyTree, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
-        """Run ``n_episodes`` episodes with ``policy`` from ``reset`` keys of ``seed``.
+    def evaluate(self, params: PyTree, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
+        """Run ``n_episodes`` episodes with ``policy`` (or a ``Controller``) from ``reset`` keys of ``seed``.
 
         The default reports the return (sum of rewards until ``done``) and the
         share of valid episodes; tasks override it with their own metrics.
@@ -245,9 +266,10 @@ class Environment:
         raise ValueError(f"task={self.name!r} has no animation")
 
 
-def record_episodes(env: Environment, params, policy: Policy, keys: jax.Array,
+def record_episodes(env: Environment, params, policy: Policy | Controller, keys: jax.Array,
                     record: Callable[[PyTree, dict], dict]) -> tuple[PyTree, dict]:
-    """Episodes from ``reset(keys[i])`` under ``policy`` for ``episode_length`` steps; jittable.
+    """Episodes from ``reset(keys[i])`` under ``policy`` (or a ``Controller``) for
+    ``episode_length`` steps; jittable.
 
     Step t's key of episode i is ``fold_in(keys[i], t)``. Returns the first state (batched) and,
     per step, ``record(state, info)``'s arrays plus ``valid`` (no invalid step so far), each
@@ -255,36 +277,54 @@ def record_episodes(env: Environment, params, policy: Policy, keys: jax.Array,
     """
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
+    control = policy if isinstance(policy, Controller) else _Stateless(policy)
 
     def one(carry, t):
-        obs, s, alive = carry
-        obs, s, _, _, info = step(jax.vmap(lambda k: jax.random.fold_in(k, t))(keys), s, policy(obs), params)
+        obs, s, memory, alive = carry
+        action, memory = control.act(memory, obs, s, t)
+        obs, s, _, _, info = step(jax.vmap(lambda k: jax.random.fold_in(k, t))(keys), s, action, params)
         alive = alive & info["valid"]
-        return (obs, s, alive), {**record(s, info), "valid": alive}
+        return (obs, s, memory, alive), {**record(s, info), "valid": alive}
 
-    _, rec = jax.lax.scan(one, (obs, state, jnp.ones(keys.shape[0], bool)), jnp.arange(env.episode_length))
+    init = (obs, state, control.init(obs, state), jnp.ones(keys.shape[0], bool))
+    _, rec = jax.lax.scan(one, init, jnp.arange(env.episode_length))
     return state, {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
 
 
-def _rollout_returns(env: Environment, params, policy: Policy, n: int, seed: int):
+@dataclasses.dataclass(frozen=True)
+class _Stateless:
+    """A ``Policy`` as a ``Controller`` without memory."""
+
+    policy: Policy
+
+    def init(self, obs, state):
+        return ()
+
+    def act(self, carry, obs, state, t):
+        return self.policy(obs), carry
+
+
+def _rollout_returns(env: Environment, params, policy: Policy | Controller, n: int, seed: int):
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
+    control = policy if isinstance(policy, Controller) else _Stateless(policy)
 
     @jax.jit
     def run(keys):
         obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
 
         def one(carry, t):
-            obs, state, ret, alive, valid = carry
+            obs, state, memory, ret, alive, valid = carry
             step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(keys)
+            action, memory = control.act(memory, obs, state, t)
             obs, state, reward, done, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
-                step_keys, state, policy(obs), params)
+                step_keys, state, action, params)
             ok = jnp.asarray(info.get("valid", True), bool)
             ret = ret + jnp.where(alive, reward, 0.0)
             valid = valid & (ok | ~alive)
-            return (obs, state, ret, alive & ~done & ok, valid), None
+            return (obs, state, memory, ret, alive & ~done & ok, valid), None
 
-        init = (obs, state, jnp.zeros(n), jnp.ones(n, bool), jnp.ones(n, bool))
-        (_, _, ret, _, valid), _ = jax.lax.scan(one, init, jnp.arange(env.episode_length))
+        init = (obs, state, control.init(obs, state), jnp.zeros(n), jnp.ones(n, bool), jnp.ones(n, bool))
+        (_, _, _, ret, _, valid), _ = jax.lax.scan(one, init, jnp.arange(env.episode_length))
         return ret, valid
 
     ret, valid = run(keys)

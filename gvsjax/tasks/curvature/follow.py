@@ -64,6 +64,10 @@ class FollowTarget(CurvatureTask):
         moved = dataclasses.replace(state, target=target, target_velocity=velocity)
         return moved, rewards.reach_reward(d), {"distance": d}
 
+    def planning_params(self, params: FollowParams) -> FollowParams:
+        """A planner predicts the target straight on (bouncing off the walls): its turns are random."""
+        return dataclasses.replace(params, turn_probability=0.0)
+
     def task_obs(self, state: EpisodeState, params: FollowParams) -> jax.Array:
         return jnp.concatenate([state.target, state.target_velocity])
 

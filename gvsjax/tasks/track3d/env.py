@@ -107,6 +107,10 @@ class Track3D(Environment):
     def with_sim_dtype(self, params: Track3DParams, sim_dtype: str) -> Track3DParams:
         return dataclasses.replace(params, arm=arm3d.with_sim_dtype(params.arm, sim_dtype))
 
+    def planning_params(self, params: Track3DParams) -> Track3DParams:
+        """A planner predicts the target straight on (bouncing off the walls): its turns are random."""
+        return dataclasses.replace(params, turn_probability=0.0)
+
     def observation_space(self, params=None) -> Box:
         low = np.full(self.obs_size, -np.inf)
         high = np.full(self.obs_size, np.inf)

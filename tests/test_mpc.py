@@ -1,0 +1,134 @@
+"""gvsjax.mpc: the gradient MPC's optimiser against closed-form optima on a toy integrator, its
+memory through ``evaluate`` (a ``Controller`` wherever a ``Policy`` goes), the CLI's checks, and
+on the benchmark arm (extended tier) a plan that beats holding still."""
+
+import gvsjax  # noqa: F401, I001  (first: it configures JAX)
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import struct
+
+from gvsjax import evaluate, mpc
+from gvsjax.tasks import Environment, base, make, register
+
+GAIN = 0.5  # the integrator's displacement per unit action and step
+
+
+@struct.dataclass
+class PointState:
+    x: jax.Array  # (2,)
+    goal: jax.Array  # (2,)
+    step: jax.Array
+
+
+class Integrator(Environment):
+    """x' = x + GAIN a, reward -|x' - goal|^2: one step's optimum is clip((goal - x) / GAIN, -1, 1)."""
+
+    name = "integrator"
+    obs_size = 4
+    action_size = 2
+    episode_length = 6
+
+    def default_params(self):
+        return {"gain": jnp.asarray(GAIN)}
+
+    def reset(self, key, params):
+        x, goal = jax.random.uniform(key, (2, 2), minval=-2.0, maxval=2.0)
+        state = PointState(x=x, goal=goal, step=jnp.zeros((), jnp.int32))
+        return jnp.concatenate([x, goal]), state
+
+    def step(self, key, state, action, params):
+        x = state.x + params["gain"] * jnp.clip(action, -1.0, 1.0)
+        new = PointState(x=x, goal=state.goal, step=state.step + 1)
+        reward = -jnp.sum((x - state.goal) ** 2)
+        done = new.step >= self.episode_length
+        return jnp.concatenate([x, state.goal]), new, reward, done, {"valid": jnp.ones((), bool)}
+
+
+def test_config_names_the_parameter_and_its_range():
+    for bad, match in ((dict(horizon=0), r"horizon=0.*\[1, 1000\]"), (dict(iterations=2.5), "iterations=2.5"),
+                       (dict(learning_rate=-1.0), r"learning_rate=-1.0.*\(0, 10\]"),
+                       (dict(discount=1.5), "discount=1.5"), (dict(sim_dtype="half"), "sim_dtype='half'")):
+        with pytest.raises(ValueError, match=match):
+            mpc.MPCConfig(**bad)
+    assert mpc.MPCConfig(horizon=4, iterations=3).passes_per_step == 24
+
+
+def test_one_step_plan_is_the_closed_form_optimum_under_jit_and_vmap():
+    env = Integrator()
+    params = env.default_params()
+    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=1, iterations=300, learning_rate=0.05))
+    keys = jax.random.split(jax.random.PRNGKey(3), 64)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    action, _ = jax.jit(controller.act)(controller.init(obs, state), obs, state, 0)
+    exact = np.clip((np.asarray(state.goal) - np.asarray(state.x)) / GAIN, -1.0, 1.0)
+    saturated = np.abs((np.asarray(state.goal) - np.asarray(state.x)) / GAIN) > 1.0
+    assert saturated.any() and (~saturated).any()  # both the projection and the interior optimum are checked
+    np.testing.assert_allclose(np.asarray(action), exact, atol=2e-3)
+
+
+def test_the_plan_is_warm_started_and_the_memory_runs_through_evaluate():
+    env = Integrator()
+    params = env.default_params()
+    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=3, iterations=100, learning_rate=0.1))
+    keys = jax.random.split(jax.random.PRNGKey(4), 8)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    action, plan = controller.act(controller.init(obs, state), obs, state, 0)
+    assert plan.shape == (8, 3, 2)
+    # the goal is reached within three steps of at most GAIN each where it is that close; then held
+    result = env.evaluate(params, controller, 32, seed=5)
+    held = env.evaluate(params, lambda o: jnp.zeros((o.shape[0], 2)), 32, seed=5)
+    assert result.metrics["valid_fraction"] == 1.0
+    assert result.metrics["mean_return"] > 0.2 * held.metrics["mean_return"]  # returns are <= 0
+
+
+def test_cli_checks_controller_keys_before_compiling(capsys, monkeypatch):
+    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))
+    register("integrator", Integrator)
+    cases = ((["controller=pid", "task=integrator"], "controller='pid' is invalid"),
+             (["controller=mpc"], "controller=mpc needs task=NAME"),
+             (["controller=mpc", "task=integrator", "checkpoint=runs/x"], "either checkpoint= .* or controller=mpc"),
+             (["controller=mpc", "task=integrator", "horizon=0"], r"horizon=0 is invalid.*\[1, 1000\]"),
+             (["controller=mpc", "task=chess"], "task='chess' is unknown"))
+    for argv, match in cases:
+        assert evaluate.main(argv) == 2
+        assert __import__("re").search(match, capsys.readouterr().err)
+
+
+def test_cli_evaluates_the_controller(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))
+    register("integrator", Integrator)
+    argv = ["controller=mpc", "task=integrator", "horizon=2", "iterations=20", "n_targets=4", f"out={tmp_path}"]
+    assert evaluate.main(argv) == 0
+    import json
+
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["controller"]["horizon"] == 2 and result["n_episodes"] == 4 and result["wall_s"] > 0
+    assert "ms per control step" in capsys.readouterr().out
+
+
+@pytest.mark.extended
+def test_mpc_on_the_benchmark_arm_beats_holding_still():
+    env = make("follow_target")
+    params = dataclasses.replace(env.default_params(), turn_probability=0.0)
+    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=3, iterations=4, learning_rate=0.3))
+    keys = jax.random.split(jax.random.PRNGKey(11), 2)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+
+    @jax.jit
+    def run(state, obs):
+        def one(carry, t):
+            obs, s, plan, hold = carry
+            a, plan = controller.act(plan, obs, s, t)
+            obs, s, r, _, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, s, a, params)
+            _, hold, r0, _, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, hold, 0.0 * a, params)
+            return (obs, s, plan, hold), (r, r0)
+
+        init = (obs, state, controller.init(obs, state), state)
+        return jax.lax.scan(one, init, jnp.arange(15))[1]
+
+    r, r0 = run(state, obs)
+    assert np.all(np.isfinite(r)) and float(jnp.sum(r)) > float(jnp.sum(r0)) + 0.1
