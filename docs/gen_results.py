@@ -307,6 +307,28 @@ def benchmark_task_runs(root: Path) -> str:
             "\n\n```bash\npython experiments/curvature_ppo_study.py --table\n```")
 
 
+def mpc_reference(root: Path) -> str:
+    """The gradient MPC on each task it was run on, beside the task's policy on the same episodes
+    (``benchmarks/mpc_reference/<task>.json``)."""
+    import gvsjax  # noqa: F401
+    from gvsjax.tasks import make
+
+    rows = []
+    for f in sorted((root / "benchmarks" / "mpc_reference").glob("*.json")):
+        d = json.loads(f.read_text())
+        c, env = d["controller"], make(d["task"])
+        s = c["controller"]
+        policy = env.summary(d["policy"]) if "policy" in d else "not evaluated on these episodes"
+        rows.append([d["task"], f"H {s['horizon']}, {s['iterations']} it., {s['gradient']}", d["episodes"],
+                     env.summary(c), policy, f"{c['wall_ms_per_control_step']:.0f}",
+                     f"`{d['command']}`"])
+    if not rows:
+        return "No MPC run is committed yet."
+    return (table(["task", "MPC settings", "episodes", "MPC", "trained policy, same episodes",
+                   "MPC wall ms per control step and episode (batched, compile included)", "command"], rows)
+            + "\n\nData: `benchmarks/mpc_reference/*.json` (settings, metrics, wall time, machine load).")
+
+
 def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
     """The episodes at which ``ok`` first holds, and from which it holds at every later evaluation."""
     first = next((c["episodes"] for c in curve if ok(c)), None)
@@ -406,6 +428,7 @@ STUDIES = {
     "env_throughput": env_throughput,
     "sim": sim_throughput,
     "benchmark_task_runs": benchmark_task_runs,
+    "mpc_reference": mpc_reference,
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
 }

@@ -2,7 +2,7 @@
 
     python -m gvsjax.evaluate checkpoint=RUN_DIR [n_targets=1000] [seed=S] [out=DIR] [task=NAME]
     python -m gvsjax.evaluate task=NAME controller=mpc [horizon=10 iterations=10 learning_rate=0.1
-                              discount=1.0] [n_targets=100] [seed=S] [out=DIR]
+                              discount=1.0 gradient=reverse|forward] [n_targets=100] [seed=S] [out=DIR]
 
 ``checkpoint`` is a run folder (holding checkpoint.ckpt) or the checkpoint
 file; ``task`` (optional) must match the checkpoint's. Writes into ``out``
@@ -38,8 +38,8 @@ from gvsjax.tasks import EvalResult
 
 USAGE = __doc__.strip()
 KEYS: dict[str, Any] = {"task": "", "checkpoint": "", "n_targets": -1, "seed": -1, "out": "", "controller": "",
-                        "horizon": 10, "iterations": 10, "learning_rate": 0.1, "discount": 1.0}
-MPC_KEYS = ("horizon", "iterations", "learning_rate", "discount")
+                        "horizon": 10, "iterations": 10, "learning_rate": 0.1, "discount": 1.0, "gradient": "reverse"}
+MPC_KEYS = ("horizon", "iterations", "learning_rate", "discount", "gradient")
 
 
 def write_rows(path: Path, rows: dict[str, np.ndarray]) -> Path:
@@ -108,7 +108,9 @@ def parse_args(argv: list[str]) -> dict:
         from gvsjax import mpc
         from gvsjax.tasks import make
 
-        make(args["task"])  # an unknown task's error, before anything compiles
+        if not make(args["task"]).accepts_controller:  # (an unknown task's error, too) before anything compiles
+            raise ValueError(f"task={args['task']!r} evaluates policies only (an open-loop task); controller=mpc "
+                             "runs on the closed-loop tasks")
         args["mpc"] = mpc.MPCConfig(**{k: args[k] for k in MPC_KEYS})
     elif not args["checkpoint"]:
         raise ValueError("checkpoint=PATH is required (a run folder or its checkpoint.ckpt), or controller=mpc")

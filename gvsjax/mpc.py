@@ -7,7 +7,7 @@ box, applies the first one, and warm-starts the next step from the rest of the p
 It is a reference a learned policy is measured against, and a baseline in its own
 right:
 
-    python -m gvsjax.evaluate task=follow_target controller=mpc [horizon=10 iterations=10]
+    python -m gvsjax.evaluate task=NAME controller=mpc [horizon=10 iterations=10]
 
 The planner sees the environment's full state (``q``, ``qd``, the target), and models
 the world by ``env.planning_params(params)``: the task's params with what the
@@ -38,7 +38,10 @@ class MPCConfig:
     """The controller's settings.
 
     ``horizon``: actions optimised per control step; ``iterations``: Adam steps per control
-    step (each one forward and one backward pass over the horizon); ``learning_rate``: Adam's
+    step (each one forward and one backward pass over the horizon); ``gradient``: "reverse"
+    (``jax.grad``) or "forward" (``jax.jacfwd``: one tangent per planned action entry, horizon x
+    action_size of them, which compiles and runs faster when that number is small, e.g. a
+    single-input task); ``learning_rate``: Adam's
     step in action units (actions lie in [-1, 1]); ``discount``: the weight of step h's reward
     is ``discount**h``; ``sim_dtype``: the planner's simulation precision ("float32" or
     "float64"; the episode itself is simulated by the task's params).
@@ -48,6 +51,7 @@ class MPCConfig:
     iterations: int = 10
     learning_rate: float = 0.1
     discount: float = 1.0
+    gradient: str = "reverse"
     sim_dtype: str = ""
 
     def __post_init__(self):
@@ -59,6 +63,7 @@ class MPCConfig:
                 self.learning_rate, "a number in (0, 10]")
         require(isinstance(self.discount, (int, float)) and 0 < self.discount <= 1, "discount", self.discount,
                 "a number in (0, 1]")
+        require(self.gradient in ("reverse", "forward"), "gradient", self.gradient, "'reverse' or 'forward'")
         require(self.sim_dtype in ("", "float32", "float64"), "sim_dtype", self.sim_dtype,
                 "'float32', 'float64' or '' (the task's training precision)")
 
@@ -107,7 +112,10 @@ class MPC:
     def optimise(self, plan: jax.Array, state: PyTree) -> jax.Array:
         """The best plan (horizon, action_size) found by projected Adam from ``plan``."""
         opt = optax.adam(self.config.learning_rate)
-        value_and_grad = jax.value_and_grad(self.cost)
+        if self.config.gradient == "forward":
+            value_and_grad = lambda a, s: (self.cost(a, s), jax.jacfwd(self.cost)(a, s))  # noqa: E731
+        else:
+            value_and_grad = jax.value_and_grad(self.cost)
 
         def iteration(carry, _):
             a, opt_state, best, best_cost = carry

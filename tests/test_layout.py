@@ -23,7 +23,7 @@ LAYERS = {
     "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
                        "gvsjax.simulation", "gvsjax.statics", "gvsjax.identify"]),
     "tasks": (7, ["gvsjax.tasks"]),
-    "ppo": (8, ["gvsjax.ppo"]),
+    "controllers": (8, ["gvsjax.ppo", "gvsjax.mpc"]),
     "command line": (9, ["gvsjax.train", "gvsjax.evaluate", "gvsjax.animate", "gvsjax.runlog"]),
     "gym": (10, ["gvsjax.gym"]),
 }
@@ -170,7 +170,7 @@ def test_generic_modules_name_no_task():
     from gvsjax.tasks import registered
 
     generic = ["train.py", "evaluate.py", "animate.py", "runlog.py", "gym.py", "plots.py", "keyvalue.py",
-               "tasks/base.py", "tasks/randomized.py"]
+               "tasks/base.py", "tasks/randomized.py", "mpc.py"]
     generic += [str(p.relative_to(ROOT)) for p in (ROOT / "ppo").glob("*.py")]
     for rel in generic:
         for text in _string_constants(ROOT / rel):

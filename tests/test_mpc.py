@@ -51,16 +51,19 @@ class Integrator(Environment):
 def test_config_names_the_parameter_and_its_range():
     for bad, match in ((dict(horizon=0), r"horizon=0.*\[1, 1000\]"), (dict(iterations=2.5), "iterations=2.5"),
                        (dict(learning_rate=-1.0), r"learning_rate=-1.0.*\(0, 10\]"),
-                       (dict(discount=1.5), "discount=1.5"), (dict(sim_dtype="half"), "sim_dtype='half'")):
+                       (dict(discount=1.5), "discount=1.5"), (dict(sim_dtype="half"), "sim_dtype='half'"),
+                       (dict(gradient="adjoint"), "gradient='adjoint'.*'reverse' or 'forward'")):
         with pytest.raises(ValueError, match=match):
             mpc.MPCConfig(**bad)
     assert mpc.MPCConfig(horizon=4, iterations=3).passes_per_step == 24
 
 
-def test_one_step_plan_is_the_closed_form_optimum_under_jit_and_vmap():
+@pytest.mark.parametrize("gradient", ["reverse", "forward"])
+def test_one_step_plan_is_the_closed_form_optimum_under_jit_and_vmap(gradient):
     env = Integrator()
     params = env.default_params()
-    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=1, iterations=300, learning_rate=0.05))
+    config = mpc.MPCConfig(horizon=1, iterations=300, learning_rate=0.05, gradient=gradient)
+    controller = mpc.MPC(env, params, config)
     keys = jax.random.split(jax.random.PRNGKey(3), 64)
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     action, _ = jax.jit(controller.act)(controller.init(obs, state), obs, state, 0)
@@ -92,10 +95,18 @@ def test_cli_checks_controller_keys_before_compiling(capsys, monkeypatch):
              (["controller=mpc"], "controller=mpc needs task=NAME"),
              (["controller=mpc", "task=integrator", "checkpoint=runs/x"], "either checkpoint= .* or controller=mpc"),
              (["controller=mpc", "task=integrator", "horizon=0"], r"horizon=0 is invalid.*\[1, 1000\]"),
-             (["controller=mpc", "task=chess"], "task='chess' is unknown"))
+             (["controller=mpc", "task=chess"], "task='chess' is unknown"),
+             (["controller=mpc", "task=basketball"], "task='basketball' evaluates policies only"))
     for argv, match in cases:
         assert evaluate.main(argv) == 2
         assert __import__("re").search(match, capsys.readouterr().err)
+
+
+def test_open_loop_tasks_refuse_a_controller():
+    env = make("basketball")
+    params = env.default_params()
+    with pytest.raises(ValueError, match="task='basketball' evaluates policies .* only"):
+        env.evaluate(params, mpc.MPC(env, params), 2, 0)
 
 
 def test_cli_evaluates_the_controller(tmp_path, monkeypatch, capsys):

@@ -3,9 +3,9 @@
 A task is one module or folder under ``gvsjax/tasks`` and one line below.
 """
 
-from gvsjax.tasks.base import Box, Environment, EvalResult, auto_reset_step, make, register, registered
+from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, auto_reset_step, make, register, registered
 
-__all__ = ["DEFAULT_TASK", "Box", "Environment", "EvalResult", "auto_reset_step", "make", "register",
+__all__ = ["DEFAULT_TASK", "Box", "Controller", "Environment", "EvalResult", "auto_reset_step", "make", "register",
            "registered"]
 
 DEFAULT_TASK = "basketball"

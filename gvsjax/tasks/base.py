@@ -175,6 +175,8 @@ class Environment:
     # name -> (params, factor) -> params with that parameter x factor. Default: the soft material
     # (E, damping eta, density) of every gv.Robot in the params; a task adds its payload, if any.
     randomizable: ClassVar[Mapping[str, Scale]] = ROBOT_MATERIAL
+    # True: ``evaluate`` also takes a ``Controller`` (the closed-loop tasks; ``gvsjax.mpc``)
+    accepts_controller: ClassVar[bool] = True
     # the simulator precision training uses when the run leaves ``sim_dtype`` empty; evaluation
     # always simulates with ``default_params()`` (float64). "float32" needs a params ``sim_dtype``.
     train_sim_dtype: ClassVar[str] = "float64"
@@ -277,7 +279,7 @@ def record_episodes(env: Environment, params, policy: Policy | Controller, keys:
     """
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
-    control = policy if isinstance(policy, Controller) else _Stateless(policy)
+    control = as_controller(policy)
 
     def one(carry, t):
         obs, s, memory, alive = carry
@@ -289,6 +291,11 @@ def record_episodes(env: Environment, params, policy: Policy | Controller, keys:
     init = (obs, state, control.init(obs, state), jnp.ones(keys.shape[0], bool))
     _, rec = jax.lax.scan(one, init, jnp.arange(env.episode_length))
     return state, {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
+
+
+def as_controller(policy: Policy | Controller) -> Controller:
+    """``policy`` as a ``Controller`` (a policy has no memory and sees the observation only)."""
+    return policy if isinstance(policy, Controller) else _Stateless(policy)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -306,7 +313,7 @@ class _Stateless:
 
 def _rollout_returns(env: Environment, params, policy: Policy | Controller, n: int, seed: int):
     keys = jax.random.split(jax.random.PRNGKey(seed), n)
-    control = policy if isinstance(policy, Controller) else _Stateless(policy)
+    control = as_controller(policy)
 
     @jax.jit
     def run(keys):
@@ -329,6 +336,14 @@ def _rollout_returns(env: Environment, params, policy: Policy | Controller, n: i
 
     ret, valid = run(keys)
     return np.asarray(ret, float), np.asarray(valid, bool)
+
+
+def policy_only(env: Environment, policy: Policy | Controller) -> Policy:
+    """``policy``, or a ValueError if it is a ``Controller``: for tasks whose evaluation takes a policy only."""
+    if isinstance(policy, Controller):
+        raise ValueError(f"task={env.name!r} evaluates policies (obs -> action) only; a Controller (e.g. "
+                         "controller=mpc) runs on the closed-loop tasks")
+    return policy
 
 
 def sanitize_action(action: jax.Array, size: int | None = None) -> tuple[jax.Array, jax.Array]:

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, PyTree
+from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, PyTree, policy_only
 
 Ranges = tuple[tuple[str, float], ...]  # ((name, r), ...) in the order given
 
@@ -87,6 +87,7 @@ class Randomized(Environment):
     It takes the task's own params; ``name``, ``action_size``, ``episode_length``,
     ``ppo_defaults``, the training distributions and evaluation are the task's.
     """
+    accepts_controller = False  # evaluated on the wrapped task with a policy
 
     def __init__(self, task: Environment, ranges: Ranges, observe: bool = False):
         if isinstance(task, Randomized):
@@ -163,8 +164,9 @@ class Randomized(Environment):
         k = len(self.ranges)
         return lambda obs: policy(jnp.concatenate([obs, jnp.zeros(obs.shape[:-1] + (k,), obs.dtype)], -1))
 
-    def evaluate(self, params: PyTree, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: PyTree, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """The task's evaluation on the nominal model (``params`` as given)."""
+        policy = policy_only(self, policy)
         return self.task.evaluate(params, self.nominal_policy(policy), n_episodes, seed)
 
     def summary(self, metrics: Mapping[str, Any]) -> str:

@@ -40,7 +40,16 @@ from gvsjax.model import SoftLink
 from gvsjax.simulation import simulate
 from gvsjax.tasks.balance import figures
 from gvsjax.tasks.balance.params import BalanceParams
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, bounded, record_episodes, sanitize_action
+from gvsjax.tasks.base import (
+    Box,
+    Controller,
+    Environment,
+    EvalResult,
+    Policy,
+    bounded,
+    record_episodes,
+    sanitize_action,
+)
 
 Q_BOUND = 50.0  # |curvature coefficient| (1/m) beyond which a state is treated as diverged
 QD_BOUND = 1e3  # rad/s or 1/(m s)
@@ -171,7 +180,7 @@ class Balance(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: BalanceParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: BalanceParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """``n_episodes`` episodes from ``reset`` keys of ``seed``: success, time to upright, wobble."""
         run = jax.jit(lambda keys: rollout(self, params, policy, keys))
         out = {k: np.asarray(v) for k, v in run(jax.random.split(jax.random.PRNGKey(seed), n_episodes)).items()}
@@ -270,7 +279,8 @@ def upright_summary(tilt_rad: np.ndarray, valid: np.ndarray, tip: np.ndarray, dt
             "ever_upright": up.any(1)}
 
 
-def rollout(env: Balance, params: BalanceParams, policy: Policy, keys: jax.Array, record_q: bool = False) -> dict:
+def rollout(env: Balance, params: BalanceParams, policy: Policy | Controller, keys: jax.Array,
+            record_q: bool = False) -> dict:
     """Episodes from ``reset(keys[i])`` under ``policy(obs (n, 14)) -> (n, 1)``; jittable.
 
     Returns per control step (n, T): ``tilt`` (rad), ``valid`` (so far), ``action`` (clipped),

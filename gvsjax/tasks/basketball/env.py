@@ -28,10 +28,12 @@ from gvsjax.tasks.ballistics import miss_metrics
 from gvsjax.tasks.base import (
     ROBOT_MATERIAL,
     Box,
+    Controller,
     Environment,
     EvalResult,
     Policy,
     bounded,
+    policy_only,
     sanitize_action,
     scale_payload,
 )
@@ -58,6 +60,7 @@ class Basketball(Environment):
     """The basketball task."""
 
     name = "basketball"
+    accepts_controller = False  # an open-loop task: evaluated with a policy
     obs_size = 2
     action_size = 2
     episode_length = 1
@@ -121,11 +124,12 @@ class Basketball(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: BasketballParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: BasketballParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """Deterministic throws at ``n_episodes`` targets drawn by ``reset`` keys of ``seed``.
 
         A diverged throw counts as an infinite miss.
         """
+        policy = policy_only(self, policy)
         r = _throws(self, params, policy, n_episodes, seed)
         rows = {"target_x": r["target"][:, 0], "target_y": r["target"][:, 1], "T": r["T"],
                 "delta": r["delta"], "miss_m": r["miss"]}

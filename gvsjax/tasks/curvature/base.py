@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.tasks.base import Environment, EvalResult, Policy, record_episodes, sanitize_action
+from gvsjax.tasks.base import Controller, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.curvature import control, figures
 from gvsjax.tasks.curvature.control import N_POINTS, ArmControl
 
@@ -149,7 +149,7 @@ class CurvatureTask(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def rollout(self, params, policy: Policy, keys: jax.Array, record_q: bool = False) -> dict:
+    def rollout(self, params, policy: Policy | Controller, keys: jax.Array, record_q: bool = False) -> dict:
         """Episodes from ``reset(keys[i])``: per step (n, T) reward, distance, and the task's info."""
         def record(state, info):
             rec = {k: info[k] for k in ("reward", "distance", "orientation", "depth") if k in info}
@@ -160,7 +160,7 @@ class CurvatureTask(Environment):
         rec["first"] = first
         return rec
 
-    def evaluate(self, params, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         keys = jax.random.split(jax.random.PRNGKey(seed), n_episodes)
         out = jax.jit(lambda k: self.rollout(params, policy, k))(keys)
         out = {k: np.asarray(v) for k, v in out.items() if k != "first"}

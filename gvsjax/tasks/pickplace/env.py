@@ -30,7 +30,16 @@ from flax import struct
 
 from gvsjax import plots
 from gvsjax.robots import paper_arm
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, bounded, sanitize_action
+from gvsjax.tasks.base import (
+    Box,
+    Controller,
+    Environment,
+    EvalResult,
+    Policy,
+    bounded,
+    policy_only,
+    sanitize_action,
+)
 from gvsjax.tasks.pickplace import figures
 from gvsjax.tasks.pickplace.motion import action_to_physical, reward_of, run_step
 from gvsjax.tasks.pickplace.params import PAPER_PAIR, PickPlaceParams
@@ -88,6 +97,7 @@ class PickPlace(Environment):
     """The pick-and-place task."""
 
     name = "pickplace"
+    accepts_controller = False  # an open-loop task: evaluated with a policy
     obs_size = 9
     action_size = 2
     episode_length = 2
@@ -141,8 +151,9 @@ class PickPlace(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: PickPlaceParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: PickPlaceParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """The policy on ``n_episodes`` held-out target pairs, and on the paper's pair."""
+        policy = policy_only(self, policy)
         targets = eval_targets(params, n_episodes, seed)
         run = jax.jit(lambda t: rollout(params, policy, t))
         acts, tips, d, valid = (np.asarray(x) for x in run(jnp.asarray(targets)))

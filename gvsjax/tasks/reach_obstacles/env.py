@@ -38,7 +38,7 @@ from flax import struct
 from gvsjax.contact import report
 from gvsjax.kinematics import tip_frame
 from gvsjax.tasks import arm3d
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episodes, sanitize_action
+from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.reach_obstacles import figures
 from gvsjax.tasks.reach_obstacles.layouts import POSTS_TARGET, capsules, posts, turn
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
@@ -278,7 +278,8 @@ class ReachObstacles(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: ReachObstaclesParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: ReachObstaclesParams, policy: Policy | Controller, n_episodes: int,
+                 seed: int) -> EvalResult:
         """``n_episodes`` episodes from ``reset`` keys of ``seed`` under ``policy`` and under two
         open-loop baselines, the ``reference_action`` turned with the scene: applied at once and held,
         and raised over ``RAMP_S`` then held."""
@@ -356,7 +357,7 @@ def final_summary(out: dict, params: ReachObstaclesParams) -> dict[str, float]:
             "deepest_median_m": float(np.median(deepest)), "deepest_p95_m": p95(deepest)}
 
 
-def rollout(env: ReachObstacles, params: ReachObstaclesParams, policy: Policy, keys: jax.Array) -> dict:
+def rollout(env: ReachObstacles, params: ReachObstaclesParams, policy: Policy | Controller, keys: jax.Array) -> dict:
     """Episodes from ``reset(keys[i])`` under ``policy``; jittable. Returns numpy arrays: per step
     (n, T) ``distance`` (m), ``depth`` (m, the step's deepest penetration), ``valid`` (so far); per
     episode ``target`` (n, 3), ``yaw`` (n,) and ``shift`` (n, m, 3); ``q`` (n, T + 1, n_dofs), the

@@ -35,7 +35,7 @@ from flax import struct
 
 from gvsjax.kinematics import tip_frame
 from gvsjax.tasks import arm3d
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, sanitize_action
+from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, as_controller, sanitize_action
 from gvsjax.tasks.reach_pose import figures
 from gvsjax.tasks.reach_pose.params import ReachPoseParams
 from gvsjax.tasks.reach_pose.poses import TRAIN_POSES, TRAIN_SEED, make_params
@@ -146,7 +146,7 @@ class ReachPose(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: ReachPoseParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: ReachPoseParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """The first ``n_episodes`` targets of the (held-out) table, in order; ``seed`` is unused, the
         episodes being deterministic. Also scored: the open-loop baseline holding each target's own
         action (``action``) and the arm left at rest."""
@@ -239,7 +239,7 @@ def final_summary(out: dict) -> dict[str, float]:
     return summary
 
 
-def rollout(env: ReachPose, params: ReachPoseParams, policy: Policy, index: jax.Array,
+def rollout(env: ReachPose, params: ReachPoseParams, policy: Policy | Controller, index: jax.Array,
             open_loop: bool | jax.Array = False, record_q: bool = False) -> dict:
     """Episodes towards the table's targets ``index`` (n,) under ``policy(obs (n, k)) -> (n, action_size)``, or with
     ``open_loop`` (a bool, may be traced) each target's own held action; jittable.
@@ -251,18 +251,21 @@ def rollout(env: ReachPose, params: ReachPoseParams, policy: Policy, index: jax.
     obs = jax.vmap(observe, in_axes=(0, None))(state, params)
     keys = jax.random.split(jax.random.PRNGKey(0), index.shape[0])  # the task draws nothing while stepping
     step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
+    control = as_controller(policy)
 
-    def one(carry, _):
-        obs, state, alive = carry
-        action = jnp.where(open_loop, params.action[state.index], policy(obs))
+    def one(carry, t):
+        obs, state, memory, alive = carry
+        action, memory = control.act(memory, obs, state, t)
+        action = jnp.where(open_loop, params.action[state.index], action)
         obs, state, _, _, info = step(keys, state, action, params)
         alive = alive & info["valid"]
         rec = {"distance": info["distance"], "angle_deg": info["angle_deg"], "valid": alive, "tip": state.tip}
         if record_q:
             rec["q"] = state.q
-        return (obs, state, alive), rec
+        return (obs, state, memory, alive), rec
 
-    _, rec = jax.lax.scan(one, (obs, state, jnp.ones(index.shape[0], bool)), None, length=env.episode_length)
+    init = (obs, state, control.init(obs, state), jnp.ones(index.shape[0], bool))
+    _, rec = jax.lax.scan(one, init, jnp.arange(env.episode_length))
     rec = {k: jnp.swapaxes(v, 0, 1) for k, v in rec.items()}
     if record_q:
         rec["q"] = jnp.concatenate([state.q[:, None], rec["q"]], 1)

@@ -28,10 +28,12 @@ from gvsjax.tasks.ballistics import miss_metrics
 from gvsjax.tasks.base import (
     ROBOT_MATERIAL,
     Box,
+    Controller,
     Environment,
     EvalResult,
     Policy,
     bounded,
+    policy_only,
     sanitize_action,
     scale_payload,
 )
@@ -57,6 +59,7 @@ class Throw3D(Environment):
     """The 3D throw."""
 
     name = "throw3d"
+    accepts_controller = False  # an open-loop task: evaluated with a policy
     obs_size = 3
     action_size = 3
     episode_length = 1
@@ -102,9 +105,10 @@ class Throw3D(Environment):
                 "truncated": jnp.zeros((), bool)}
         return observe(state.target, params), state, reward, jnp.ones((), bool), info
 
-    def evaluate(self, params: Throw3DParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: Throw3DParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """Deterministic throws at ``n_episodes`` targets drawn by ``reset`` keys of ``seed``;
         a diverged throw counts as an infinite miss."""
+        policy = policy_only(self, policy)
         keys = jax.random.split(jax.random.PRNGKey(seed), n_episodes)
 
         @jax.jit

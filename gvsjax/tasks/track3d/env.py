@@ -34,7 +34,7 @@ from flax import struct
 
 from gvsjax.kinematics import tip_state
 from gvsjax.tasks import arm3d
-from gvsjax.tasks.base import Box, Environment, EvalResult, Policy, record_episodes, sanitize_action
+from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.track3d import figures
 from gvsjax.tasks.track3d.params import TARGET_SETS, Track3DParams
 from gvsjax.tasks.track3d.target import check as check_targets
@@ -154,7 +154,7 @@ class Track3D(Environment):
 
     # ------------------------------------------------------------------ evaluation
 
-    def evaluate(self, params: Track3DParams, policy: Policy, n_episodes: int, seed: int) -> EvalResult:
+    def evaluate(self, params: Track3DParams, policy: Policy | Controller, n_episodes: int, seed: int) -> EvalResult:
         """``n_episodes`` episodes from ``reset`` keys of ``seed``: the distance at every step."""
         run = jax.jit(lambda keys: rollout(self, params, policy, keys))
         out = {k: np.asarray(v) for k, v in run(jax.random.split(jax.random.PRNGKey(seed), n_episodes)).items()}
@@ -222,7 +222,8 @@ def distance_summary(d: np.ndarray) -> dict[str, float]:
             "within_5cm": float(np.mean(d < 0.05)), "within_10cm": float(np.mean(d < 0.10))}
 
 
-def rollout(env: Track3D, params: Track3DParams, policy: Policy, keys: jax.Array, record_q: bool = False) -> dict:
+def rollout(env: Track3D, params: Track3DParams, policy: Policy | Controller, keys: jax.Array,
+            record_q: bool = False) -> dict:
     """Episodes from ``reset(keys[i])`` under ``policy(obs (n, k)) -> (n, action_size)``; jittable.
 
     Returns per step (n, T): ``distance``, ``valid`` (so far), ``tip`` and ``target``
