@@ -75,7 +75,8 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     qv, qdv = vec(qs), vec(qds)
     steps = _magnus_steps(link, grid, scale, qv, qdv, dtype, with_psi, jacobian)
 
-    def advance(R, p, J, eta, psi, step):
+    def compose(state, step):  # the state (R, p, J, eta, psi) carried over one interval's step
+        R, p, J, eta, psi = state
         R_s, p_s, S, S_qd, Sdot_qd = step
         if jacobian:
             J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
@@ -99,7 +100,7 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     leaves, rebuild = _split(steps)
 
     def body(carry, xs):
-        out = pack(*advance(*unpack(carry), rebuild(xs)))
+        out = pack(*compose(unpack(carry), rebuild(xs)))
         return out, out
 
     last, ys = jax.lax.scan(body, first, leaves)
@@ -123,6 +124,8 @@ def _magnus_steps(link, grid, scale, qv, qdv, dtype, with_psi, jacobian) -> tupl
     # a trailing axis of 1 on the strains, so that they broadcast against the columns (n_int, n_s)
     P1, P2 = (tuple(jnp.asarray(phi[:, r, :] * scale[r], dtype) if active[r] else 0 for r in range(6))
               for phi in (grid.phi1, grid.phi2))
+    rest1: tuple
+    rest2: tuple
     if link.rest_strain is None:
         rest1 = rest2 = XI_STAR
     else:

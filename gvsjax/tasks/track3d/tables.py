@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Any
 
 import jax
 import numpy as np
@@ -55,5 +56,5 @@ def default_tips(actuation: str) -> np.ndarray:
 
 def write(path: Path = PATH) -> None:
     """Compute the default arms' tables and write them to ``path`` (float64, compressed)."""
-    tables = {a: holdable_tips(arm3d.ArmParams(actuation=a)) for a in ACTUATIONS}
+    tables: dict[str, Any] = {a: holdable_tips(arm3d.ArmParams(actuation=a)) for a in ACTUATIONS}
     np.savez_compressed(path, **tables)
