@@ -3,9 +3,10 @@
 The unrolled pass (``kinematics.forward``) traces one Magnus step per interval and one
 scalar chain per Jacobian column, so its compiled program grows with n_gauss
 times the DoFs, and XLA's compile time faster still. Here the Magnus steps of all
-intervals are traced once, as arrays over the intervals, and the Jacobian's columns
-travel as one 6-vector of arrays over the columns, so the algebra is traced once
-whatever ``n_gauss`` and the DoFs; a ``lax.scan`` composes the steps along the link.
+intervals are traced once (inside the loop, or before it as arrays over the intervals),
+and the Jacobian's columns travel as one 6-vector of arrays over the columns, so the
+algebra is traced once whatever ``n_gauss`` and the DoFs; a ``lax.scan`` composes the
+steps along the link.
 The link's samples come back as one stacked ``Point``.
 """
 
@@ -23,10 +24,13 @@ from gvsjax.magnus import XI_STAR, Point, grid_of, magnus, rest_strain, zanna_po
 from gvsjax.model import SoftLink
 
 # "auto" scans a soft link with at least SCAN_MIN_GAUSS Gauss points when its robot has at least
-# SCAN_MIN_DOFS DoFs, or when its unrolled pass would be large: (n_gauss + 1) intervals x the robot's
-# DoFs x the link's active strains >= SCAN_MIN_SIZE (a 6-DoF spatial rod from 3 Gauss points;
-# docs/speed.md)
+# SCAN_MIN_DOFS DoFs, or at most HOIST_MAX_DOFS and the link's unrolled pass would be large:
+# (n_gauss + 1) intervals x the robot's DoFs x the link's active strains >= SCAN_MIN_SIZE (a 6-DoF
+# spatial rod from 3 Gauss points; docs/speed.md)
 SCAN_MIN_DOFS, SCAN_MIN_GAUSS, SCAN_MIN_SIZE = 12, 2, 144
+# up to this many DoFs the Magnus steps are computed before the loop, beyond it inside (measured:
+# before the loop a 6-DoF rod's step ran ~2.5x faster at batch 1, a 12-DoF one's ~1.5-2.5x slower)
+HOIST_MAX_DOFS = 6
 
 
 def uses_scan(link: SoftLink, n_dofs: int | None = None) -> bool:
@@ -45,19 +49,20 @@ def uses_scan(link: SoftLink, n_dofs: int | None = None) -> bool:
     n_dofs = link.basis.n_dofs if n_dofs is None else n_dofs
     active = sum(order >= 0 for order in link.basis.orders)
     size = (link.n_gauss + 1) * n_dofs * active
-    return link.n_gauss >= SCAN_MIN_GAUSS and (n_dofs >= SCAN_MIN_DOFS or size >= SCAN_MIN_SIZE)
+    small = n_dofs <= HOIST_MAX_DOFS and size >= SCAN_MIN_SIZE  # measured on 6 DoFs only
+    return link.n_gauss >= SCAN_MIN_GAUSS and (n_dofs >= SCAN_MIN_DOFS or small)
 
 
 def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=True):
     """``_soft_link`` as a ``lax.scan`` over the intervals, recording one stacked point.
 
-    The Magnus steps depend on q and qd only, not on the pose they start from, so all
-    intervals' steps are computed at once before the loop, as arrays over the intervals
-    (and over the Jacobian's columns): their algebra is traced once whatever ``n_gauss``
-    and the DoFs. The loop only composes them along the link. Computed inside the loop,
-    the steps made its body ~2.5x costlier to run (one 6-DoF rod, batch 1). Basis rows
-    that are zero everywhere (inactive strains) stay structural zeros and still prune
-    the algebra.
+    One Magnus step's algebra is traced whatever ``n_gauss``, and the Jacobian's columns
+    travel as one 6-vector of arrays over the columns, whatever the DoFs. The steps
+    depend on q and qd only, not on the pose they start from: in a robot of up to
+    ``HOIST_MAX_DOFS`` DoFs all intervals' steps are computed at once before the loop
+    (arrays over the intervals), which then only composes them along the link; in
+    larger robots each step is computed inside the loop. Basis rows that are zero
+    everywhere (inactive strains) stay structural zeros and still prune the algebra.
     """
     grid = grid_of(robot, li)
     L = link.length
@@ -73,7 +78,7 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     arr = lambda a: jnp.asarray(lie.as_array(a), dtype)  # noqa: E731
     vec = lambda xs: 0 if all(lie.is_zero(x) for x in xs) else jnp.stack([arr(x) for x in xs])  # noqa: E731
     qv, qdv = vec(qs), vec(qds)
-    steps = _magnus_steps(link, grid, scale, qv, qdv, dtype, with_psi, jacobian)
+    active = [bool(np.any(grid.phi1[:, r]) or np.any(grid.phi2[:, r])) for r in range(6)]
 
     def compose(state, step):  # the state (R, p, J, eta, psi) carried over one interval's step
         R, p, J, eta, psi = state
@@ -97,13 +102,20 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
         return R, tuple(f[9:12]), tuple(J), tuple(f[12:18]), tuple(f[18:24]) if with_psi else psi0
 
     first = pack(R0, p0, [tuple(J0[k][r] for k in cols) for r in range(6)], eta0, psi0)
-    leaves, rebuild = _split(steps)
+    if n <= HOIST_MAX_DOFS:
+        leaves, rebuild = _split(_magnus_steps(link, grid, active, scale, qv, qdv, dtype, with_psi, jacobian))
 
-    def body(carry, xs):
-        out = pack(*compose(unpack(carry), rebuild(xs)))
-        return out, out
+        def body(carry, xs):
+            out = pack(*compose(unpack(carry), rebuild(xs)))
+            return out, out
 
-    last, ys = jax.lax.scan(body, first, leaves)
+        last, ys = jax.lax.scan(body, first, leaves)
+    else:
+        def looped(carry, x):
+            out = pack(*compose(unpack(carry), _interval_step(link, x, active, scale, qv, qdv, with_psi, jacobian)))
+            return out, out
+
+        last, ys = jax.lax.scan(looped, first, _interval_data(link, grid, dtype))
     stacked = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), first, ys)
     R, p, J, eta, psi = unpack(stacked)
     points.append(Point(li, grid.X, "soft", mul(jnp.asarray(grid.w, dtype), L), R, p, J, eta, psi,
@@ -115,12 +127,38 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     return R, p, J_list, eta, psi
 
 
-def _magnus_steps(link, grid, scale, qv, qdv, dtype, with_psi, jacobian) -> tuple:
+def _interval_data(link, grid, dtype) -> dict[str, Any]:
+    """The scan's per-interval inputs: lengths h (n_int,), the raw basis at the two Zanna points
+    phi1, phi2 (n_int, 6, n_s) and, with a rest strain, its values there rest1, rest2 (n_int, 6)."""
+    xs: dict[str, Any] = dict(h=jnp.asarray(grid.dX, dtype), phi1=jnp.asarray(grid.phi1, dtype),
+                              phi2=jnp.asarray(grid.phi2, dtype))
+    if link.rest_strain is not None:
+        for key, x in zip(("rest1", "rest2"), zanna_points(grid)):
+            xs[key] = jnp.stack([jnp.broadcast_to(lie.as_array(c), x.shape) for c in rest_strain(link, x)], axis=1)
+    return xs
+
+
+def _interval_step(link, x, active, scale, qv, qdv, with_psi, jacobian) -> tuple:
+    """One interval's Magnus step inside the loop, from its slice ``x`` of ``_interval_data``:
+    (R_s, p_s, S (6 entries of shape (n_s,)), S_qd, Sdot_qd)."""
+    def combine(P, v):  # sum_k P[:, k] v_k for a stacked basis P (6 entries of shape (n_s,))
+        return tuple(0 if lie.is_zero(Pr) or lie.is_zero(v) else Pr @ v for Pr in P)
+
+    P1, P2 = (tuple(mul(x[k][r], scale[r]) if active[r] else 0 for r in range(6)) for k in ("phi1", "phi2"))
+    rest1, rest2 = (XI_STAR, XI_STAR) if link.rest_strain is None else (
+        tuple(x["rest1"][r] for r in range(6)), tuple(x["rest2"][r] for r in range(6)))
+    xi1, xi2 = vadd(rest1, combine(P1, qv)), vadd(rest2, combine(P2, qv))
+    R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, combine(P1, qdv), combine(P2, qdv),
+                                             [P1] if jacobian else [], [P2] if jacobian else [],
+                                             mul(x["h"], link.length), with_psi)
+    return R_s, p_s, S_cols[0] if jacobian else (), S_qd, Sdot_qd
+
+
+def _magnus_steps(link, grid, active, scale, qv, qdv, dtype, with_psi, jacobian) -> tuple:
     """Every interval's Magnus step (``magnus``'s outputs) at once: each scalar an array of
     shape (n_int,) (a structural zero, a constant or a shape-() array when the same for all),
     the Jacobian's columns S of shape (n_int, n_s)."""
     n_int = len(grid.dX)
-    active = [bool(np.any(grid.phi1[:, r]) or np.any(grid.phi2[:, r])) for r in range(6)]
     # a trailing axis of 1 on the strains, so that they broadcast against the columns (n_int, n_s)
     P1, P2 = (tuple(jnp.asarray(phi[:, r, :] * scale[r], dtype) if active[r] else 0 for r in range(6))
               for phi in (grid.phi1, grid.phi2))

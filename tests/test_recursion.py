@@ -47,6 +47,15 @@ def chain() -> gv.Robot:
                     masses=(gv.PointMass(mass=0.2, link=1, X=0.55),))
 
 
+def single() -> gv.Robot:
+    """``chain``'s first rod alone on a fixed joint (6 DoFs: the scan computes its Magnus steps before
+    the loop), with its taper, polynomial rest strain, a point load, a point mass and the distributed load."""
+    link = chain().links[0].replace(joint=gv.Joint("fixed"))
+    return gv.Robot(links=(link,), gravity=9.81, distributed=_drag,
+                    loads=(gv.PointLoad(magnitude=3.0, link=0, X=0.37, direction=(0.0, 0.6, 0.8)),),
+                    masses=(gv.PointMass(mass=0.2, link=0, X=0.55),))
+
+
 def _state(robot, seed=0, dtype=np.float64):
     rng = np.random.default_rng(seed)
     n = robot.n_dofs
@@ -85,8 +94,10 @@ def test_auto_scans_the_links_of_large_robots():
 
 
 @pytest.mark.extended
-def test_scan_and_unrolled_agree_on_every_output():
-    robot = chain()
+@pytest.mark.parametrize("make", [chain, single])
+def test_scan_and_unrolled_agree_on_every_output(make):
+    robot = make()
+    assert (robot.n_dofs <= scan.HOIST_MAX_DOFS) == (make is single)  # both layouts of the scan
     q, qd = _state(robot)
     a = _outputs(_with(robot, "unrolled"), q, qd)  # op by op: no compile
     scanned = _with(robot, "scan")
