@@ -28,8 +28,9 @@ from gvsjax.model import SoftLink
 # (n_gauss + 1) intervals x the robot's DoFs x the link's active strains >= SCAN_MIN_SIZE (a 6-DoF
 # spatial rod from 3 Gauss points; docs/speed.md)
 SCAN_MIN_DOFS, SCAN_MIN_GAUSS, SCAN_MIN_SIZE = 12, 2, 144
-# up to this many DoFs the Magnus steps are computed before the loop, beyond it inside (measured:
-# before the loop a 6-DoF rod's step ran ~2.5x faster at batch 1, a 12-DoF one's ~1.5-2.5x slower)
+# up to this many DoFs the Magnus steps are computed before the loop, beyond it inside: before the
+# loop a 6-DoF rod's step ran ~2.5x faster at batch 1; at 12 DoFs no gain was measured above the
+# shared machine's noise, so larger robots keep the loop they had (docs/speed.md)
 HOIST_MAX_DOFS = 6
 
 
