@@ -48,9 +48,11 @@ def chain() -> gv.Robot:
 
 
 def single() -> gv.Robot:
-    """``chain``'s first rod alone on a fixed joint (6 DoFs: the scan computes its Magnus steps before
-    the loop), with its taper, polynomial rest strain, a point load, a point mass and the distributed load."""
-    link = chain().links[0].replace(joint=gv.Joint("fixed"))
+    """``chain``'s first rod alone on a fixed joint, unshearable (6 DoFs: the scan computes its Magnus
+    steps before the loop), with its taper, polynomial rest strain, a point load, a point mass and the
+    distributed load."""
+    link = chain().links[0].replace(joint=gv.Joint("fixed"), basis=gv.StrainBasis(orders=(0, 1, 1, 0, -1, -1),
+                                                                                   kind="legendre"))
     return gv.Robot(links=(link,), gravity=9.81, distributed=_drag,
                     loads=(gv.PointLoad(magnitude=3.0, link=0, X=0.37, direction=(0.0, 0.6, 0.8)),),
                     masses=(gv.PointMass(mass=0.2, link=0, X=0.55),))
