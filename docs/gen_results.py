@@ -385,6 +385,36 @@ def tendon_arm(root: Path) -> str:
             "```bash\npython experiments/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
 
 
+def compile_time(root: Path) -> str:
+    """``experiments/bench_compile.py``'s JSON: compile and step time per model and Gauss points, each tree."""
+    d = load(root, "compile_time.json")
+    trees = list(d["trees"])
+    by = {(r["model"], r["n_gauss"], r["tree"]): r for r in d["rows"]}
+    rows = []
+    for model, g in dict.fromkeys((r["model"], r["n_gauss"]) for r in d["rows"]):
+        cells = [f"`{model}`", next(r["dofs"] for r in d["rows"] if r["model"] == model), g]
+        runs = [by.get((model, g, t)) for t in trees]
+        for r in runs:
+            ok = r is not None and r.get("status") == "ok"
+            cells.append(f"{r['b1']['compile_s']:.1f} s" if ok else (r or {}).get("status", "-"))
+        for key in ("b1", "big"):
+            for r in runs:
+                ok = r is not None and r.get("status") == "ok" and key in r
+                cells.append(sig(min(r[key]["runs_s"]) / d["n_steps"] * 1e3) if ok else "")
+        rows.append(cells)
+    big = d["big_batch"]
+    header = (["model", "DoFs", "Gauss points"] + [f"compile, {t}" for t in trees]
+              + [f"step ms, batch 1, {t}" for t in trees] + [f"step ms, batch {big}, {t}" for t in trees])
+    loads = [x for r in d["rows"] for x in (r["load_before"][0], r["load_after"][0])]
+    return (table(header, rows)
+            + f"\n\n`{d['integrator']}`, {d['dtype']}, {d['n_steps']} steps of {1e3 * d['dt']:g} ms per call, "
+            f"compile time at batch 1 (tracing, lowering and XLA), step time the fastest of {d['repeats']} calls "
+            "(on a loaded machine the least disturbed); "
+            f"each model and tree in its own process, the trees interleaved; 1-minute load average "
+            f"{min(loads):.1f}-{max(loads):.1f} on {d['cpu_count']} cores. Data: `benchmarks/compile_time.json`."
+            "\n\n```bash\n" + d.get("command", "python experiments/bench_compile.py") + "\n```")
+
+
 def reachability_table(d: dict, policy) -> str:
     """``experiments/tendon_reachability.py``'s JSON as a table: each row at the largest action sample,
     how far its shares moved over the last doubling, and ``policy(task)``, the committed policy's result."""
@@ -431,6 +461,7 @@ STUDIES = {
     "mpc_reference": mpc_reference,
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
+    "compile_time": compile_time,
 }
 
 

@@ -196,10 +196,12 @@ class SoftLink:
 
     ``recursion`` says how the kinematic pass visits the link's sample points:
     "unrolled" (one traced Magnus step per interval: the fastest steps for small
-    links), "scan" (one step inside ``lax.scan``: a compiled program whose size
-    does not grow with ``n_gauss`` or the DoFs, for large spatial links) or
-    "auto" (scan once the robot has 12 DoFs and the link 2 Gauss points). The
-    results agree to rounding.
+    links), "scan" (one Magnus step traced, the steps composed inside
+    ``lax.scan``: a compiled program whose size does not grow with ``n_gauss``
+    or the DoFs, for spatial links) or "auto" (scan a link of 2 or more Gauss
+    points once the robot has 12 DoFs, or in a robot of at most 6 DoFs once its
+    unrolled pass would be large: a 6-DoF spatial rod from 3 Gauss points;
+    ``scan.uses_scan``). The results agree to rounding.
 
     ``torsion_constant`` picks the Jt of the torsional stiffness G Jt (see the field).
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``

@@ -47,6 +47,17 @@ def chain() -> gv.Robot:
                     masses=(gv.PointMass(mass=0.2, link=1, X=0.55),))
 
 
+def single() -> gv.Robot:
+    """``chain``'s first rod alone on a fixed joint, unshearable (6 DoFs: the scan computes its Magnus
+    steps before the loop), with its taper, polynomial rest strain, a point load, a point mass and the
+    distributed load."""
+    link = chain().links[0].replace(joint=gv.Joint("fixed"), basis=gv.StrainBasis(orders=(0, 1, 1, 0, -1, -1),
+                                                                                   kind="legendre"))
+    return gv.Robot(links=(link,), gravity=9.81, distributed=_drag,
+                    loads=(gv.PointLoad(magnitude=3.0, link=0, X=0.37, direction=(0.0, 0.6, 0.8)),),
+                    masses=(gv.PointMass(mass=0.2, link=0, X=0.55),))
+
+
 def _state(robot, seed=0, dtype=np.float64):
     rng = np.random.default_rng(seed)
     n = robot.n_dofs
@@ -64,8 +75,11 @@ def _outputs(robot, q, qd):
 
 def test_auto_scans_the_links_of_large_robots():
     assert scan.uses_scan(gv.rod_3d(order=1, n_gauss=3).links[0])  # 12 strain DoFs
-    assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=3).links[0])  # 6: unrolled steps faster
-    assert not scan.uses_scan(gv.paper_arm().links[0])
+    # 6 spatial DoFs: unrolled at 2 Gauss points (a small program), scanned from 3 (its compile time)
+    assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=2).links[0])
+    assert scan.uses_scan(gv.rod_3d(order=0, n_gauss=3).links[0]) and scan.uses_scan(gv.rod_3d(order=0).links[0])
+    assert not scan.uses_scan(gv.paper_arm().links[0])  # planar: one active strain keeps it small
+    assert not scan.uses_scan(gv.tendon_arm().links[1], gv.tendon_arm().n_dofs)
     assert not scan.uses_scan(gv.rod_3d(order=0, n_gauss=1).links[0], 12)  # one Gauss point: nothing to loop over
     # a link of 6 DoFs in a chain of two: every link of the 12-DoF robot is scanned
     link = gv.rod_3d(length=0.5, order=0, n_gauss=2).links[0]
@@ -82,8 +96,10 @@ def test_auto_scans_the_links_of_large_robots():
 
 
 @pytest.mark.extended
-def test_scan_and_unrolled_agree_on_every_output():
-    robot = chain()
+@pytest.mark.parametrize("make", [chain, single])
+def test_scan_and_unrolled_agree_on_every_output(make):
+    robot = make()
+    assert (robot.n_dofs <= scan.HOIST_MAX_DOFS) == (make is single)  # both layouts of the scan
     q, qd = _state(robot)
     a = _outputs(_with(robot, "unrolled"), q, qd)  # op by op: no compile
     scanned = _with(robot, "scan")

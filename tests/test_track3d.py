@@ -138,6 +138,36 @@ def test_reachable_targets_stay_near_held_tips_under_jit_and_vmap(env):
     assert held.mean() < 0.5  # the published box is mostly beyond the arm's static reach
 
 
+def _shipped_rows_match_the_statics(actuation: str) -> None:
+    """Rows of the shipped table of ``actuation`` drawn at random (and the first, a corner of the
+    action box), solved again with the statics, give the shipped tips; make_params reads the file."""
+    from gvsjax.tasks.holdable import equilibrium_poses
+    from gvsjax.tasks.track3d import tables
+
+    with np.load(tables.PATH) as data:
+        assert sorted(data.files) == sorted(tables.ACTUATIONS)
+        tips = np.array(data[actuation])
+    assert tips.shape == (tables.TABLE_SIZE, 3) and tips.dtype == np.float64
+    arm = arm3d.ArmParams(actuation=actuation)
+    rows = np.concatenate([[0], np.random.default_rng(0).choice(tables.TABLE_SIZE, 5, replace=False)])
+    again = equilibrium_poses(arm, tables.table_actions(arm)[rows])
+    assert np.all(again["converged"])
+    np.testing.assert_allclose(again["position"], tips[rows], rtol=0, atol=1e-9)
+    assert tables.default_tips(actuation) is tables.default_tips(actuation)  # read once per process
+    np.testing.assert_array_equal(tables.default_tips(actuation), tips)
+
+
+def test_the_shipped_holdable_table_matches_the_statics():
+    """The default arms' tip tables ship with the package (``track3d.tables``), so that making the
+    params solves no statics; re-solving some rows keeps the file from drifting from the physics."""
+    _shipped_rows_match_the_statics("tendon")
+
+
+@pytest.mark.extended
+def test_the_shipped_muscle_table_matches_the_statics():
+    _shipped_rows_match_the_statics("muscle")
+
+
 def test_bad_target_set_is_refused_before_compiling(env):
     with pytest.raises(ValueError, match=r"Track3DParams.targets='boxes' is invalid: expected one of "
                                          r"\['reachable', 'box'\]"):

@@ -22,10 +22,10 @@ import numpy as np
 
 from gvsjax.tasks import arm3d, holdable
 from gvsjax.tasks.track3d.params import TARGET_SETS, Track3DParams
+from gvsjax.tasks.track3d.tables import TABLE_SEED, default_tips, holdable_tips
 from gvsjax.validation import concrete, require
 
 BOUNCE_CANDIDATES = 8  # directions tried at the part's boundary, the current one first
-TABLE_SIZE, TABLE_SEED = 16384, 7  # the holdable tips' table: held actions (holdable.sample_actions)
 STARTS = 16384  # accepted start points in the params
 
 
@@ -110,19 +110,6 @@ def box_distance(points: Any, params: Track3DParams) -> np.ndarray:
     return np.linalg.norm(p - np.clip(p, low, high), axis=-1)
 
 
-_TABLES: dict[tuple, np.ndarray] = {}  # the default arms' tip tables, per (actuation, size, seed)
-
-
-def holdable_tips(arm: arm3d.ArmParams, n: int = TABLE_SIZE, seed: int = TABLE_SEED) -> np.ndarray:
-    """(n, 3) m: the tips of the arm's equilibria under ``n`` held actions of ``seed``
-    (``holdable.sample_actions``: the box's corners, faces and inside). Raises if a solve fails."""
-    tips = holdable.equilibrium_poses(arm, holdable.sample_actions(jax.random.PRNGKey(seed), n,
-                                                                   arm3d.n_actions(arm)))
-    if not np.all(tips["converged"]):
-        raise RuntimeError(f"{int(np.sum(~tips['converged']))} of {n} equilibria did not converge")
-    return tips["position"]
-
-
 def start_points(params: Track3DParams, n: int = STARTS, seed: int = TABLE_SEED) -> np.ndarray:
     """(n, 3) m: uniform box points inside the reachable part of ``params`` (its ``holdable``
     table and ``reach_radius``), by rejection."""
@@ -138,8 +125,8 @@ def start_points(params: Track3DParams, n: int = STARTS, seed: int = TABLE_SEED)
 def make_params(actuation: str = "tendon", targets: str = "reachable", **overrides: Any) -> Track3DParams:
     """Track3DParams of the default arm under ``actuation`` with ``targets`` (one of ``TARGET_SETS``);
     for "reachable" the table of holdable tips within ``reach_radius`` of the box and the start
-    points (built once per process for the default arms, ~1 min). ``overrides``: other fields
-    (an ``arm`` sets the actuation)."""
+    points (the default arms' tables are shipped, ``tables.default_tips``; another ``arm``'s is
+    computed, ~1 min). ``overrides``: other fields (an ``arm`` sets the actuation)."""
     require(targets in TARGET_SETS, "targets", targets, f"one of {list(TARGET_SETS)}")
     allowed = set(Track3DParams.__dataclass_fields__) - {"targets", "holdable", "starts"}
     unknown = sorted(set(overrides) - allowed)
@@ -149,13 +136,7 @@ def make_params(actuation: str = "tendon", targets: str = "reachable", **overrid
     arm3d.check(params.arm)
     if targets == "box":
         return params
-    if "arm" in overrides:
-        tips = holdable_tips(params.arm)
-    else:
-        key = (actuation, TABLE_SIZE, TABLE_SEED)
-        if key not in _TABLES:
-            _TABLES[key] = holdable_tips(params.arm)
-        tips = _TABLES[key]
+    tips = holdable_tips(params.arm) if "arm" in overrides else default_tips(actuation)
     near = tips[box_distance(tips, params) <= params.reach_radius]
     params = dataclasses.replace(params, targets="reachable", holdable=jnp.asarray(near))
     params = dataclasses.replace(params, starts=jnp.asarray(start_points(params)))
