@@ -89,11 +89,12 @@ class ElasticaTwin:
 
     ``reset(key) -> obs``; ``step(key, action) -> (obs, reward, done, info)`` with the same keys as
     gvsjax's ``env.reset`` / ``env.step`` (per-step ``fold_in(key, t)``), so the targets match.
-    ``contact``: (k, nu) per element for the obstacle tasks.
+    ``contact``: (k, nu) per element for the obstacle tasks; ``gravity`` m/s^2 along -z.
     """
 
-    def __init__(self, task, params, contact: tuple[float, float] = (CONTACT_K, CONTACT_NU)):
-        self.task, self.params, self.contact = task, params, contact
+    def __init__(self, task, params, contact: tuple[float, float] = (CONTACT_K, CONTACT_NU),
+                 gravity: float = GRAVITY):
+        self.task, self.params, self.contact, self.gravity = task, params, contact, gravity
         self.n_sub = int(round(params.arm.control_dt / DT))
         self._after = jax.jit(lambda k, s: task.after(k, s, params))
         self._observe = jax.jit(lambda s: task.observe(s, params))
@@ -115,7 +116,7 @@ class ElasticaTwin:
                                           density=RHO, youngs_modulus=E, shear_modulus=E / 3.0)
         sim.append(rod)
         sim.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,))
-        sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -GRAVITY]))
+        sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -self.gravity]))
         sim.dampen(rod).using(ea.AnalyticalLinearDamper, time_step=DT, **damper_settings())
         for a, b in obstacles:  # their world -> Elastica's
             a, b = a[SWAP], b[SWAP]
