@@ -12,7 +12,7 @@ PyElastica episode is cached in ``--cache`` (a rerun resumes; ``--workers 2`` sp
 on an otherwise idle machine). ``--contact gvsjax`` runs the obstacle twins with gvsjax's penalty
 (3e5 N/m^2, 1e3 N s/m^2 per metre, times the element length) instead of theirs.
 
-    python experiments/elastica_twins_eval.py --task follow_target --episodes 100
+    python experiments/elastica_twins_eval.py --task follow_target --episodes 100 [--first 16]
     python experiments/elastica_twins_eval.py --task obstacles_2d --episodes 40
     python experiments/elastica_twins_eval.py --figure      # figures/elastica_twins.png from the JSON
 
@@ -85,12 +85,13 @@ def _episode(job) -> tuple[int, dict]:
     return i, out
 
 
-def elastica_runs(task_name, n, seed, hold, contact, cache_dir, workers) -> dict:
-    """Per-step arrays (n, T, ...) of the PyElastica episodes, cached one file per episode."""
+def elastica_runs(task_name, n, seed, hold, contact, cache_dir, workers, first) -> dict:
+    """Per-step arrays (first, T, ...) of the first ``first`` of the n PyElastica episodes, cached one file
+    per episode."""
     os.makedirs(cache_dir, exist_ok=True)
     path = lambda i: os.path.join(cache_dir, f"{task_name}_{contact}_n{n}_s{seed}_h{hold}_{i}.npz")  # noqa: E731
-    todo = [(task_name, i, n, seed, hold, contact) for i in range(n) if not os.path.exists(path(i))]
-    print(f"{task_name}: {n - len(todo)} PyElastica episodes cached, {len(todo)} to run", flush=True)
+    todo = [(task_name, i, n, seed, hold, contact) for i in range(first) if not os.path.exists(path(i))]
+    print(f"{task_name}: {first - len(todo)} PyElastica episodes cached, {len(todo)} to run", flush=True)
     t0 = time.perf_counter()
 
     def save(i, out):
@@ -107,7 +108,7 @@ def elastica_runs(task_name, n, seed, hold, contact, cache_dir, workers) -> dict
     else:
         for job in todo:
             save(*_episode(job))
-    runs = [dict(np.load(path(i))) for i in range(n)]
+    runs = [dict(np.load(path(i))) for i in range(first)]
     return {k: np.stack([r[k] for r in runs]) for k in (*FIELDS, "wall_s", "verlet_steps")}
 
 
@@ -159,18 +160,20 @@ def run(args) -> None:
     from bench_sim import load_average
 
     task, params, policy = setup(args.task)
-    n = args.episodes
+    n, first = args.episodes, args.first or args.episodes
     keys, actions = keys_and_actions(task, n, args.seed, args.hold)
+    keys, actions = keys[:first], actions[:first]
     before, t0 = load_average(), time.perf_counter()
-    e = elastica_runs(args.task, n, args.seed, args.hold, args.contact, args.cache, args.workers)
+    e = elastica_runs(args.task, n, args.seed, args.hold, args.contact, args.cache, args.workers, first)
     wall_e = time.perf_counter() - t0
     t1 = time.perf_counter()
     g = gvsjax_runs(task, params, policy, keys, actions)
     wall_g = time.perf_counter() - t1
     res = compare(task, params, g, e)
     name = args.task if args.contact == "theirs" or policy is not None else f"{args.task} (gvsjax's contact law)"
-    ep = int(np.argsort(res["pyelastica"]["per_episode_return"])[n // 2])  # the median episode, for the figure
-    res.update(task=args.task, n_episodes=n, policy=CHECKPOINTS.get(args.task, f"open loop, held {args.hold} steps, "
+    ep = int(np.argsort(res["pyelastica"]["per_episode_return"])[first // 2])  # the median episode, for the figure
+    res.update(task=args.task, n_episodes=first, of_keys=f"the first {first} of split(PRNGKey({EVAL_SEED}), {n})",
+               policy=CHECKPOINTS.get(args.task, f"open loop, held {args.hold} steps, "
                                                                                  f"seed {args.seed}"),
                contact=args.contact if policy is None else None, eval_seed=EVAL_SEED,
                pyelastica={**res["pyelastica"], "seconds_per_episode": stats(e["wall_s"]),
@@ -179,7 +182,7 @@ def run(args) -> None:
                gvsjax={**res["gvsjax"], "wall_s": wall_g},
                figure_episode={"index": ep, "tip_gvsjax": g["tip"][ep].tolist(),
                                "tip_pyelastica": e["tip"][ep].tolist(), "target": g["target"][ep].tolist()},
-               command=f"python experiments/elastica_twins_eval.py --task {args.task} --episodes {n} "
+               command=f"python experiments/elastica_twins_eval.py --task {args.task} --episodes {n} --first {first} "
                        f"--hold {args.hold} --seed {args.seed} --contact {args.contact}",
                load_average_before=before, load_average_after=load_average(), getloadavg=list(os.getloadavg()))
     data = json.load(open(args.json)) if os.path.exists(args.json) else {}
@@ -227,6 +230,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--task", choices=("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d"))
     ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--first", type=int, default=0, help="run only the first of the --episodes episodes (0: all)")
     ap.add_argument("--hold", type=int, default=10, help="steps each open-loop action is held (obstacle tasks)")
     ap.add_argument("--seed", type=int, default=0, help="of the open-loop actions")
     ap.add_argument("--contact", choices=tuple(CONTACTS), default="theirs")
