@@ -96,6 +96,7 @@ class ElasticaTwin:
                  gravity: float = GRAVITY):
         self.task, self.params, self.contact, self.gravity = task, params, contact, gravity
         self.n_sub = int(round(params.arm.control_dt / DT))
+        self._reset = jax.jit(lambda k: task.reset(k, params)[1])
         self._after = jax.jit(lambda k, s: task.after(k, s, params))
         self._observe = jax.jit(lambda s: task.observe(s, params))
         self._apply = jax.jit(lambda k, t, a: control.apply(params.arm, k, t, a))
@@ -153,7 +154,7 @@ class ElasticaTwin:
     # ------------------------------------------------------------------ the environment
 
     def reset(self, key) -> np.ndarray:
-        _, state = self.task.reset(key, self.params)  # gvsjax's target (and obstacles) for this key
+        state = self._reset(key)  # gvsjax's target (and obstacles) for this key
         self._build(np.asarray(state.obstacles))
         self.state = self._fill(state)
         return np.asarray(self._observe(self.state))
@@ -191,10 +192,11 @@ class ElasticaTwin:
 def run_episode(twin: ElasticaTwin, key, policy=None, actions=None) -> dict:
     """One episode from ``reset(key)``: per step reward, distance, orientation, deepest, tip, target, valid
     (each (T, ...)). ``policy``: obs (k,) -> action; or open-loop ``actions`` (T, a)."""
+    t0 = time.perf_counter()
     obs = twin.reset(key)
     rec: dict[str, list] = {k: [] for k in ("reward", "distance", "orientation", "deepest", "tip", "target",
                                             "valid")}
-    alive, t0 = True, time.perf_counter()
+    alive = True
     for t in range(twin.task.episode_length):
         a = actions[t] if actions is not None else policy(obs)
         obs, r, done, info = twin.step(jax.random.fold_in(key, t), a)

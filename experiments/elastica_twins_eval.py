@@ -72,11 +72,12 @@ _CACHE: dict = {}
 def _episode(job) -> tuple[int, dict]:
     """One PyElastica episode (in this process or a spawned worker)."""
     task_name, i, n, seed, hold, contact = job
-    if task_name not in _CACHE:
-        _CACHE[task_name] = setup(task_name)
-    task, params, policy = _CACHE[task_name]
-    keys, actions = keys_and_actions(task, n, seed, hold)
-    twin = et.ElasticaTwin(task, params, contact=CONTACTS[contact])
+    if job[:1] + job[2:] not in _CACHE:  # one twin (its jitted reward and observation) for all episodes
+        task, params, policy = setup(task_name)
+        _CACHE[job[:1] + job[2:]] = (task, policy, et.ElasticaTwin(task, params, contact=CONTACTS[contact]),
+                                     *keys_and_actions(task, n, seed, hold))
+    task, policy, twin, keys, actions = _CACHE[job[:1] + job[2:]]
+    twin.steps_simulated = 0
     if policy is not None:
         out = et.run_episode(twin, keys[i], policy=lambda obs: np.asarray(policy(jnp.asarray(obs)[None])[0]))
     else:
@@ -209,6 +210,11 @@ def figure(path_json: str, out: str) -> None:
         tg, te, tt = (np.array(f[k]) for k in ("tip_gvsjax", "tip_pyelastica", "target"))
         t = 0.1 * np.arange(1, len(tg) + 1) * (5 if name.startswith("obstacles") else 1)
         ax = axes[0, j]
+        if name == "obstacles_2d":
+            from gvsjax.tasks.curvature.layouts import POSTS_XZ
+
+            for x, z in POSTS_XZ:
+                ax.add_patch(plt.Circle((x, z), 0.1, color="0.8"))
         ax.plot(tt[:, 0], tt[:, 2], "k:", lw=1.5, label="target")
         ax.plot(tg[:, 0], tg[:, 2], lw=1.2, label="gvsjax tip")
         ax.plot(te[:, 0], te[:, 2], lw=1.2, ls="--", label="PyElastica tip")
