@@ -324,8 +324,10 @@ def elastica_twins(root: Path) -> str:
     """The benchmark tasks in gvsjax and in their PyElastica twins, the same episodes
     (``benchmarks/elastica_twins.json``)."""
     d = load(root, "elastica_twins.json")
+    shape = d.pop("_rest_shape_gap", None)
     rows = []
-    for name, r in d.items():
+    order = ("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d")
+    for name, r in sorted(d.items(), key=lambda kv: (order.index(kv[1]["task"]), kv[0])):
         p = r["paired"]
         rel = p["relative_mean_difference"]
         for sim in ("gvsjax", "pyelastica"):
@@ -335,16 +337,22 @@ def elastica_twins(root: Path) -> str:
                          f"{ret['mean']:.2f} ({ret['median']:.2f})", _metric_cells(r["task"], r[sim]),
                          "" if sim == "gvsjax" else
                          f"{p['return_difference']['median']:+.2f}"
-                         + (f" ({100 * rel:+.0f}% of the mean)" if rel is not None else ""),
+                         + (f" ({100 * rel:+.1f}% of the mean" if rel is not None else " (")
+                         + f"; r = {p['return_correlation']:.3f})",
                          "" if sim == "gvsjax" else f"{100 * p['tip_distance_m']['median']:.1f} / "
                          f"{100 * p['tip_distance_m']['p95']:.1f} cm"])
     cmds = "\n".join(r["command"] for r in d.values())
     return (table(["task", "episodes", "simulator", "return: mean (median)", "physical metrics",
-                   "PyElastica - gvsjax, per episode (median)", "tip apart: median / p95"], rows)
+                   "PyElastica - gvsjax, per episode: median (mean's share; correlation)", "tip apart: median / p95"], rows)
             + "\n\nReturn: the benchmark's discounted return averaged over start steps (gamma 0.99). "
             "follow_target and ik_4d: the gvsjax-trained PPO policies, deterministic; the obstacle tasks: "
             "open-loop random actions held 10 steps. Data: `benchmarks/elastica_twins.json`."
-            f"\n\n```bash\n{cmds}\n```")
+            + ("\n\nThe curvature mappings alone (no load, rest shapes): the discrete rod's tip and gvsjax's "
+               "continuum's are " + ", ".join(f"{1000 * r['tip_gap_m']['median']:.1f} mm" for r in shape["rows"])
+               + " apart (median over " + str(shape["rows"][0]["n"]) + " random turning angles uniform in "
+               + ", ".join(f"[-{r['amplitude_rad']:g}, {r['amplitude_rad']:g}]" for r in shape["rows"])
+               + " rad per point and direction)." if shape else "")
+            + f"\n\n```bash\n{cmds}" + (f"\n{shape['command']}" if shape else "") + "\n```")
 
 
 def benchmark_tasks_speed(root: Path) -> str:

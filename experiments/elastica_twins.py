@@ -237,3 +237,34 @@ def gvsjax_open_loop(task, params, keys, actions) -> dict:
 
     out = jax.jit(jax.vmap(one))(keys, jnp.asarray(actions))
     return {k: np.asarray(v) for k, v in out.items()}
+
+
+def _rotation(w: np.ndarray) -> np.ndarray:
+    """exp([w]x) (3, 3) of a rotation vector w (3,) (Rodrigues)."""
+    th = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if th < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(th) / th * K + (1.0 - np.cos(th)) / th**2 * K @ K
+
+
+def rest_tips(theta: np.ndarray, h: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """The tip (3,) of the 1 m arm in its rest shape (no load) for turning angles ``theta`` (5, 2), in the
+    rod's material convention: (PyElastica's discrete rod, each node turning by its share; gvsjax's
+    continuum, a constant curvature share_k theta_k / l_k over each segment, integrated with steps ``h``).
+    Their difference is the curvature mapping's alone."""
+    from gvsjax.curvature_arm import SEGMENT_SHARE, SEGMENTS
+
+    R, x, W, dl = np.eye(3), np.zeros(3), node_weights(), LENGTH / N_EL
+    for j in range(N_EL):
+        x = x + dl * R[:, 2]
+        if j < N_EL - 1:
+            R = R @ _rotation(np.append(W[j] @ theta, 0.0))
+    discrete = x
+    R, x, knots = np.eye(3), np.zeros(3), np.asarray(SEGMENTS) * LENGTH
+    for i in range(int(round(LENGTH / h))):
+        k = int(np.searchsorted(knots, (i + 0.5) * h)) - 1
+        u = np.append(SEGMENT_SHARE[k] * theta[k] / (knots[k + 1] - knots[k]), 0.0) if 0 <= k < 5 else np.zeros(3)
+        x = x + h * (R @ _rotation(0.5 * h * u))[:, 2]  # constant curvature: the mid-step tangent
+        R = R @ _rotation(h * u)
+    return discrete, x

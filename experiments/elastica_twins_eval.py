@@ -15,6 +15,7 @@ on an otherwise idle machine). ``--contact gvsjax`` runs the obstacle twins with
     python experiments/elastica_twins_eval.py --task follow_target --episodes 100 [--first 16]
     python experiments/elastica_twins_eval.py --task obstacles_2d --episodes 40
     python experiments/elastica_twins_eval.py --figure      # figures/elastica_twins.png from the JSON
+    python experiments/elastica_twins_eval.py --shapes      # the rest-shape gap of the two curvature mappings
 
 Writes (merges into) benchmarks/elastica_twins.json.
 """
@@ -232,6 +233,21 @@ def figure(path_json: str, out: str) -> None:
     print(f"wrote {out}")
 
 
+def rest_shape_gap(path_json: str, n: int = 100) -> None:
+    """The curvature mapping alone: the rest-shape tips of the discrete rod and gvsjax's continuum
+    (``elastica_twins.rest_tips``) for n random turning angles uniform in [-a, a] per point and direction."""
+    rng = np.random.default_rng(0)
+    rows = []
+    for amp in (0.5, 1.0, 2.0):
+        d = [np.linalg.norm(np.subtract(*et.rest_tips(th))) for th in rng.uniform(-amp, amp, (n, 5, 2))]
+        rows.append({"amplitude_rad": amp, "n": n, "tip_gap_m": stats(d) | {"max": float(np.max(d))}})
+        print(f"|theta| <= {amp}: rest-shape tips {1000 * np.median(d):.2f} mm apart (median)", flush=True)
+    data = json.load(open(path_json)) if os.path.exists(path_json) else {}
+    data["_rest_shape_gap"] = {"rows": rows, "command": "python experiments/elastica_twins_eval.py --shapes"}
+    with open(path_json, "w") as fh:
+        json.dump(data, fh, indent=1)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--task", choices=("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d"))
@@ -244,9 +260,12 @@ def main() -> None:
     ap.add_argument("--cache", default=os.path.join(ROOT, "runs", "elastica_twins"))
     ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "elastica_twins.json"))
     ap.add_argument("--figure", action="store_true", help="only draw figures/elastica_twins.png from the JSON")
+    ap.add_argument("--shapes", action="store_true", help="only the rest-shape gap of the two curvature mappings")
     args = ap.parse_args()
     if args.figure:
         figure(args.json, os.path.join(ROOT, "figures", "elastica_twins.png"))
+    elif args.shapes:
+        rest_shape_gap(args.json)
     else:
         run(args)
 
