@@ -216,11 +216,14 @@ def figure(path_json: str, out: str) -> None:
 
             for x, z in POSTS_XZ:
                 ax.add_patch(plt.Circle((x, z), 0.1, color="0.8"))
-        ax.plot(tt[:, 0], tt[:, 2], "k:", lw=1.5, label="target")
-        ax.plot(tg[:, 0], tg[:, 2], lw=1.2, label="gvsjax tip")
-        ax.plot(te[:, 0], te[:, 2], lw=1.2, ls="--", label="PyElastica tip")
+                ax.add_patch(plt.Circle((x, z), 0.1 + et.RADIUS, fill=False, ls=":", color="0.5"))
+        k = 100 if name == "follow_target" else len(tg)  # follow_target: the first 10 s of 50
+        ax.plot(tt[:k, 0], tt[:k, 2], "k:", lw=1.5, label="target")
+        ax.plot(tg[:k, 0], tg[:k, 2], lw=1.2, label="gvsjax tip")
+        ax.plot(te[:k, 0], te[:k, 2], lw=1.2, ls="--", label="PyElastica tip")
         ax.plot(*tt[0, [0, 2]], "ko", ms=4)
-        ax.set(xlabel="x (m)", ylabel="z (m)", title=f"{name}, episode {f['index']}: x-z", aspect="equal")
+        span = " (first 10 s)" if k < len(tg) else ""
+        ax.set(xlabel="x (m)", ylabel="z (m)", title=f"{name}, episode {f['index']}{span}: x-z", aspect="equal")
         ax.legend(fontsize=7)
         bx = axes[1, j]
         bx.plot(t, 100 * np.linalg.norm(tg - tt, axis=1), label="gvsjax: tip to target")
