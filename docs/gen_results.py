@@ -327,12 +327,14 @@ def elastica_twins(root: Path) -> str:
     shape = d.pop("_rest_shape_gap", None)
     rows = []
     order = ("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d")
-    for name, r in sorted(d.items(), key=lambda kv: (order.index(kv[1]["task"]), kv[0])):
+    for r in sorted(d.values(), key=lambda r: (order.index(r["task"]), r.get("contact") or "")):
         p = r["paired"]
         rel = p["relative_mean_difference"]
         for sim in ("gvsjax", "pyelastica"):
             ret = r[sim]["discounted_return_average"]
-            rows.append([f"`{name}`" if sim == "gvsjax" else "", r["n_episodes"] if sim == "gvsjax" else "",
+            law = " (PyElastica with gvsjax's contact law)" if r.get("contact") == "gvsjax" else ""
+            label = f"`{r['task']}`{law}"
+            rows.append([label if sim == "gvsjax" else "", r["n_episodes"] if sim == "gvsjax" else "",
                          "gvsjax" if sim == "gvsjax" else "PyElastica",
                          f"{ret['mean']:.2f} ({ret['median']:.2f})", _metric_cells(r["task"], r[sim]),
                          "" if sim == "gvsjax" else
@@ -343,7 +345,8 @@ def elastica_twins(root: Path) -> str:
                          f"{100 * p['tip_distance_m']['p95']:.1f} cm"])
     cmds = "\n".join(r["command"] for r in d.values())
     return (table(["task", "episodes", "simulator", "return: mean (median)", "physical metrics",
-                   "PyElastica - gvsjax, per episode: median (mean's share; correlation)", "tip apart: median / p95"], rows)
+                   "PyElastica - gvsjax, per episode: median (mean's share; correlation)",
+                   "tip apart: median / p95"], rows)
             + "\n\nReturn: the benchmark's discounted return averaged over start steps (gamma 0.99). "
             "follow_target and ik_4d: the gvsjax-trained PPO policies, deterministic; the obstacle tasks: "
             "open-loop random actions held 10 steps. Data: `benchmarks/elastica_twins.json`."
