@@ -9,7 +9,7 @@ Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs
 command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
 JSON (``track3d_basis``, ``*_substeps``, ``reach_obstacles_steps``, ``throw3d_convergence``,
 ``muscle_workspace``, ``tendon_reachability``, ``curvature_arm_basis``, ``env_throughput``, ``sim``,
-``benchmark_task_runs``).
+``benchmark_task_runs``, ``elastica_twins``, ``benchmark_tasks_speed``).
 
 Run it alone to print every table: ``python docs/gen_results.py [NAME ...]``.
 """
@@ -328,6 +328,76 @@ def mpc_reference(root: Path) -> str:
                    "MPC wall ms per control step and episode (batched, compile included)", "command"], rows)
             + "\n\nData: `benchmarks/mpc_reference/*.json` (settings, metrics, wall time, machine load).")
 
+def _metric_cells(task: str, m: dict) -> str:
+    """A task's physical metrics in one cell."""
+    if task == "follow_target":
+        return (f"mean distance {100 * m['mean_distance_m']:.1f} cm, within 5 / 10 cm "
+                f"{100 * m['within_5cm']:.1f} / {100 * m['within_10cm']:.1f}%")
+    if task == "ik_4d":
+        return (f"final distance {100 * m['final_distance_m']['median']:.1f} cm, "
+                f"orientation {m['final_orientation_deg']['median']:.1f} deg (medians)")
+    return (f"final distance {100 * m['final_distance_m']['median']:.1f} cm (median), within 5 cm "
+            f"{100 * m['within_5cm']:.0f}%, deepest {1000 * m['deepest_m']['median']:.1f} mm (median), "
+            f"> 1 cm {100 * m['penetrating']:.0f}%")
+
+
+def elastica_twins(root: Path) -> str:
+    """The benchmark tasks in gvsjax and in their PyElastica twins, the same episodes
+    (``benchmarks/elastica_twins.json``)."""
+    d = load(root, "elastica_twins.json")
+    shape = d.pop("_rest_shape_gap", None)
+    rows = []
+    order = ("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d")
+    for r in sorted(d.values(), key=lambda r: (order.index(r["task"]), r.get("contact") or "")):
+        p = r["paired"]
+        rel = p["relative_mean_difference"]
+        for sim in ("gvsjax", "pyelastica"):
+            ret = r[sim]["discounted_return_average"]
+            law = " (PyElastica with gvsjax's contact law)" if r.get("contact") == "gvsjax" else ""
+            label = f"`{r['task']}`{law}"
+            rows.append([label if sim == "gvsjax" else "", r["n_episodes"] if sim == "gvsjax" else "",
+                         "gvsjax" if sim == "gvsjax" else "PyElastica",
+                         f"{ret['mean']:.2f} ({ret['median']:.2f})", _metric_cells(r["task"], r[sim]),
+                         "" if sim == "gvsjax" else
+                         f"{p['return_difference']['median']:+.2f}"
+                         + (f" ({100 * rel:+.1f}% of the mean" if rel is not None else " (")
+                         + f"; r = {p['return_correlation']:.3f})",
+                         "" if sim == "gvsjax" else f"{100 * p['tip_distance_m']['median']:.1f} / "
+                         f"{100 * p['tip_distance_m']['p95']:.1f} cm"])
+    cmds = "\n".join(r["command"] for r in d.values())
+    return (table(["task", "episodes", "simulator", "return: mean (median)", "physical metrics",
+                   "PyElastica - gvsjax, per episode: median (mean's share; correlation)",
+                   "tip apart: median / p95"], rows)
+            + "\n\nReturn: the benchmark's discounted return averaged over start steps (gamma 0.99). "
+            "follow_target and ik_4d: the gvsjax-trained PPO policies, deterministic; the obstacle tasks: "
+            "open-loop random actions held 10 steps. Data: `benchmarks/elastica_twins.json`."
+            + ("\n\nThe curvature mappings alone (no load, rest shapes): the discrete rod's tip and gvsjax's "
+               "continuum's are " + ", ".join(f"{1000 * r['tip_gap_m']['median']:.1f} mm" for r in shape["rows"])
+               + " apart (median over " + str(shape["rows"][0]["n"]) + " random turning angles uniform in "
+               + ", ".join(f"[-{r['amplitude_rad']:g}, {r['amplitude_rad']:g}]" for r in shape["rows"])
+               + " rad per point and direction)." if shape else "")
+            + f"\n\n```bash\n{cmds}" + (f"\n{shape['command']}" if shape else "") + "\n```")
+
+
+def benchmark_tasks_speed(root: Path) -> str:
+    """Env steps/s of the benchmark tasks, gvsjax against the PyElastica twins
+    (``benchmarks/benchmark_tasks_speed.json``)."""
+    d = load(root, "benchmark_tasks_speed.json")
+    rows = []
+    for name, r in d["tasks"].items():
+        pe = r["pyelastica"]
+        for g in r["gvsjax"]:
+            rows.append([f"`{name}`", "yes" if r["contact"] else "no", g["batch"], num(g["env_steps_per_s"], 0),
+                         sig(pe["env_steps_per_s_2_cores"], 3), f"{g['ratio_to_pyelastica_2_cores']:.1f}x",
+                         f"{r['target_ratio']:.0f}x", f"{g['loadavg_before'][0]:.1f}"])
+    return (table(["task", "contact", "batch", "gvsjax env steps/s", "PyElastica env steps/s (2 cores)",
+                   "ratio", "issue 48's target", "load (1 min)"], rows)
+            + "\n\ngvsjax: `jit(vmap(env.step))`, float32 (the training dtype), median of 3 calls after "
+            "compiling; PyElastica: one twin per process, its rate x 2 cores. "
+            f"Machine: {d['machine']}; `uptime` before: {d['uptime_before']}. "
+            "Data: `benchmarks/benchmark_tasks_speed.json`."
+            f"\n\n```bash\n{d['command']}\n```")
+
 
 def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
     """The episodes at which ``ok`` first holds, and from which it holds at every later evaluation."""
@@ -459,6 +529,8 @@ STUDIES = {
     "sim": sim_throughput,
     "benchmark_task_runs": benchmark_task_runs,
     "mpc_reference": mpc_reference,
+    "elastica_twins": elastica_twins,
+    "benchmark_tasks_speed": benchmark_tasks_speed,
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
     "compile_time": compile_time,

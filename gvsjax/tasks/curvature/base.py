@@ -153,7 +153,7 @@ class CurvatureTask(Environment):
         """Episodes from ``reset(keys[i])``: per step (n, T) reward, distance, and the task's info."""
         def record(state, info):
             rec = {k: info[k] for k in ("reward", "distance", "orientation", "depth") if k in info}
-            rec.update(tip=state.node_p[-1], target=state.target, deepest=state.deepest)
+            rec.update(tip=state.node_p[..., -1, :], target=state.target, deepest=state.deepest)
             return {**rec, "q": state.q, "kappa": state.kappa} if record_q else rec
 
         first, rec = record_episodes(self, params, policy, keys, record)
