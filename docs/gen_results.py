@@ -328,6 +328,7 @@ def mpc_reference(root: Path) -> str:
                    "MPC wall ms per control step and episode (batched, compile included)", "command"], rows)
             + "\n\nData: `benchmarks/mpc_reference/*.json` (settings, metrics, wall time, machine load).")
 
+
 def _metric_cells(task: str, m: dict) -> str:
     """A task's physical metrics in one cell."""
     if task == "follow_target":
