@@ -16,6 +16,7 @@ penetration and the fraction of runs that touched, so a change of the law that
 changes the physics shows.
 
     python experiments/bench_contact_cost.py --json benchmarks/contact_cost.json
+    python experiments/bench_contact_cost.py --figure figures/contact_cost.png   # from the JSON (and *_before)
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import json
 import os
 import statistics
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -51,20 +53,23 @@ def bars(n: int) -> tuple:
 
 def layouts(names: list[str]) -> dict[str, tuple | None]:
     table: dict[str, tuple | None] = {"none": None, "0 obstacles": (), "sphere": (SPHERE,)}
-    table.update({f"{n} capsules": bars(n) for n in (1, 4, 12, 48)})
+    for n in (1, 4, 12, 48):
+        table[f"{n} capsules"] = table[f"{n} capsules, all pairs"] = bars(n)
     return {k: table[k] for k in names}
 
 
-def robot(obstacles):
+def robot(name: str, obstacles):
+    """The task's arm with ``obstacles`` (its broad phase, ``Contact.nearest``, off for "all pairs")."""
     arm = contact_arm()
     if obstacles is None:
         return arm.replace(contact=None)
-    return arm.replace(contact=arm.contact.replace(obstacles=obstacles))
+    contact = arm.contact.replace(obstacles=obstacles)
+    return arm.replace(contact=contact.replace(nearest=None) if name.endswith("all pairs") else contact)
 
 
-def runner(obstacles, n_steps: int, dtype, save: bool = False):
-    """jit(vmap) of tensions (batch, 8) -> final q (or the saved gaps)."""
-    r = robot(obstacles)
+def runner(name: str, obstacles, n_steps: int, dtype, save: bool = False):
+    """jit(vmap) of tensions (batch, 8) -> final q (or the saved gaps and the final q)."""
+    r = robot(name, obstacles)
 
     def run(tension):
         tr = gv.simulate(r, n_steps * DT, n_steps=n_steps, tendon_force=tension, integrator="ars443", dtype=dtype,
@@ -78,36 +83,97 @@ def tensions(batch: int, high: float, dtype, seed: int = 0):
     return jax.random.uniform(jax.random.PRNGKey(seed), (batch, 8), dtype, maxval=high)
 
 
+def figure(path: str, out: str) -> None:
+    """The cost ratio against the number of obstacles (largest batch) and against the batch."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = json.loads(Path(path).read_text())
+    before_path = Path(path.replace(".json", "_before.json"))
+    before = json.loads(before_path.read_text()) if before_path.exists() else None
+    top = max(r["batch"] for r in d["rows"])
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+
+    def series(data, suffix, batch):
+        pts = sorted((int(r["layout"].split()[0]), r["ratio_to_no_contact"]) for r in data["rows"]
+                     if r["batch"] == batch and r["layout"].endswith("capsules" + suffix))
+        return [x for x, _ in pts], [y for _, y in pts]
+
+    a.plot(*series(d, "", top), "o-", label="now (the task's arm: 4 nearest bars per piece)")
+    a.plot(*series(d, ", all pairs", top), "s--", label="now, all pairs")
+    if before:
+        a.plot(*series(before, "", top), "x:", color="grey", label="before")
+    for name, style in (("sphere", "C3"), ("0 obstacles", "C7")):
+        r = next((r for r in d["rows"] if r["layout"] == name and r["batch"] == top), None)
+        if r:
+            a.axhline(r["ratio_to_no_contact"], color=style, lw=0.8, ls="-.", label=f"{name} (now)")
+    a.axhline(3.0, color="k", lw=0.5, label="target for 12 capsules: 3x")
+    a.set_ylim(0.0, None)
+    a.set_xscale("log")
+    a.set_xticks([1, 4, 12, 48], ["1", "4", "12", "48"])
+    a.set_xlabel("capsules")
+    a.set_ylabel("cost per step / contact-free step")
+    a.set_title(f"batch {top}")
+    a.legend(fontsize=7)
+    for name in dict.fromkeys(r["layout"] for r in d["rows"]):
+        pts = sorted((r["batch"], r["ratio_to_no_contact"]) for r in d["rows"] if r["layout"] == name)
+        if name != "none" and len(pts) > 1:
+            b.plot([x for x, _ in pts], [y for _, y in pts], "o-", label=name)
+    b.set_xscale("log")
+    b.set_ylim(1.0, None)
+    b.set_xlabel("batch")
+    b.set_ylabel("cost per step / contact-free step")
+    b.set_title("against the batch")
+    b.legend(fontsize=7)
+    fig.suptitle(f"contact on the obstacle tasks' arm ({d['integrator']}, {1e3 * d['dt']:g} ms, {d['dtype']})")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--batches", type=int, nargs="+", default=[1, 64, 1024])
+    ap.add_argument("--batches", type=int, nargs="*", default=[1, 64, 1024])
     ap.add_argument("--layouts", nargs="+", default=["none", "sphere", "1 capsules", "4 capsules", "12 capsules",
                                                      "48 capsules"])
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--rounds", type=int, default=5)
-    ap.add_argument("--tension", type=float, default=300.0)
-    ap.add_argument("--check-steps", type=int, default=100, help="steps of the saved run (penetration)")
-    ap.add_argument("--check-batch", type=int, default=64)
+    ap.add_argument("--tension", type=float, default=1500.0)
+    ap.add_argument("--check-steps", type=int, default=200, help="steps of the saved run (penetration)")
+    ap.add_argument("--check-batch", type=int, default=32)
+    ap.add_argument("--check-layouts", nargs="*", default=None, help="default: --layouts")
     ap.add_argument("--dtype", default="float64")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--figure", default=None, help="only draw this png from the JSON at --json")
+    ap.add_argument("--append", action="store_true", help="add this run's rows to the JSON at --json")
     args = ap.parse_args()
+    if args.figure:
+        figure(args.json or "benchmarks/contact_cost.json", args.figure)
+        return
     dtype = jnp.dtype(args.dtype)
     chosen = layouts(args.layouts)
     out: dict = dict(dt=DT, integrator="ars443", dtype=args.dtype, steps_per_call=args.steps, rounds=args.rounds,
                      tension_max=args.tension, loadavg_before=os.getloadavg(), jax=jax.__version__, rows=[],
-                     accuracy=[])
-    for name, obs in chosen.items():  # the physics: deepest penetration over a longer saved run
-        gap, q = runner(obs, args.check_steps, dtype, save=True)(tensions(args.check_batch, args.tension, dtype, 1))
+                     accuracy=[], accuracy_batch=args.check_batch, accuracy_steps=args.check_steps)
+    if args.append:
+        with open(args.json) as fh:
+            out = {**json.load(fh), "loadavg_before_appended_run": os.getloadavg()}
+    for name, obs in layouts(args.check_layouts if args.check_layouts is not None else args.layouts).items():
+        # the physics: deepest penetration over a longer saved run, and the final states' mean (a checksum)
+        check = runner(name, obs, args.check_steps, dtype, save=True)
+        gap, q = check(tensions(args.check_batch, args.tension, dtype, 1))
         row = dict(layout=name, deepest_penetration_m=float(-jnp.min(gap)) if gap.size else 0.0,
                    fraction_touching=float(jnp.mean(jnp.any(gap < 0, axis=(-2, -1)))) if gap.size else 0.0,
-                   fraction_finite=float(jnp.mean(jnp.all(jnp.isfinite(q), axis=-1))))
+                   fraction_finite=float(jnp.mean(jnp.all(jnp.isfinite(q), axis=-1))),
+                   mean_final_q=float(jnp.mean(q)), mean_abs_final_q=float(jnp.mean(jnp.abs(q))))
         out["accuracy"].append(row)
         print(row, flush=True)
     for batch in args.batches:
         x = tensions(batch, args.tension, dtype)
         fns, compile_s = {}, {}
         for name, obs in chosen.items():
-            fns[name] = runner(obs, args.steps, dtype)
+            fns[name] = runner(name, obs, args.steps, dtype)
             t0 = time.perf_counter()
             jax.block_until_ready(fns[name](x))
             compile_s[name] = time.perf_counter() - t0
