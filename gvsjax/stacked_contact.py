@@ -6,6 +6,9 @@ backend vectorises poorly. Here every vector is three arrays (..., n_c, m) (m th
 obstacles of the stack) and the obstacles' sums are one reduction: the same
 formulas as ``obstacles.Sphere.piece``, ``obstacles.Capsule.piece`` and
 ``contact.law``, equal to them to float rounding (``tests/test_contact.py``).
+The profile's derivatives (the elastic force and moment) are its reverse pass
+written out, one elementwise pass instead of autodiff's stored residuals
+(``tests/test_contact_gradients.py``); ``nearest`` is the optional broad phase.
 """
 
 from __future__ import annotations
