@@ -297,6 +297,57 @@ def sim_throughput(root: Path) -> str:
             "\n\n```bash\npython experiments/bench_sim.py --json benchmarks/sim.json\n```")
 
 
+CONTACT_COST_RUNS = """python experiments/bench_contact_cost.py --batches 1024 --layouts none "0 obstacles" sphere \\
+    "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, all pairs" "48 capsules, all pairs" \\
+    --check-layouts none sphere "12 capsules" "48 capsules" "48 capsules, all pairs" --json benchmarks/contact_cost.json
+python experiments/bench_contact_cost.py --append --batches 1 64 --layouts none sphere "12 capsules" "48 capsules" \\
+    --check-layouts --rounds 7 --json benchmarks/contact_cost.json
+python experiments/bench_contact_cost.py --figure figures/contact_cost.png
+"""
+
+
+def contact_cost(root: Path) -> str:
+    """The obstacle tasks' arm: cost of contact per layout and batch, against the code before the hand
+    derivatives and the broad phase (``contact_cost_before.json``: that code, measured the same way)."""
+    d, before = load(root, "contact_cost.json"), load(root, "contact_cost_before.json")
+    batches = sorted({r["batch"] for r in d["rows"]})
+    old = {r["layout"]: r for r in before["rows"] if r["batch"] == max(batches)}
+    cell = lambda r: f"{r['ratio_to_no_contact']:.2f}x ({r['us_per_arm_step']:.0f} us)" if r else ""  # noqa: E731
+    names = list(dict.fromkeys(r["layout"] for r in d["rows"]))
+    pick = lambda name, b: next((r for r in d["rows"] if r["layout"] == name and r["batch"] == b), None)  # noqa: E731
+    rows = [[name] + [cell(pick(name, b)) for b in batches] + [cell(old.get(name.replace(", all pairs", "")))]
+            for name in names]
+    acc = {r["layout"]: r for r in d["accuracy"]}
+    checks = [[r["layout"], f"{1e3 * max(r['deepest_penetration_m'], 0.0):.2f} mm",
+               f"{1e3 * max(acc[r['layout']]['deepest_penetration_m'], 0.0):.2f} mm",
+               f"{r['fraction_touching']:.0%}", f"{acc[r['layout']]['fraction_touching']:.0%}",
+               f"{abs(acc[r['layout']]['mean_final_q'] - r['mean_final_q']):.1e}"]
+              for r in before["accuracy"] if r["layout"] in acc]
+    load_avg = ", ".join(f"{x:.1f}" for x in d["loadavg_before"])
+    return (table(["layout"] + [f"batch {b}" for b in batches] + [f"before, batch {max(batches)}"], rows)
+            + f"\n\nThe cost per arm-step against the same arm without contact (`Robot.contact` None), "
+            f"{d['dtype']}, `{d['integrator']}` at {1e3 * d['dt']:g} ms, median of {d['rounds']} round-robin rounds "
+            f"(load average {load_avg} on 2 cores: a shared machine). \"all pairs\": without the broad phase "
+            "(`Contact.nearest` None; the task's arm runs the law on each piece's 4 nearest bars). \"before\": the "
+            "code before the hand-written derivatives and the broad phase, measured the same way in its own run. "
+            "Data: `benchmarks/contact_cost.json`, `benchmarks/contact_cost_before.json`.\n\n"
+            + table(["layout", "deepest penetration, before", "now", "runs touching, before", "now",
+                     "mean final q, difference"], checks)
+            + f"\n\n{d['accuracy_batch']} runs of {d['accuracy_steps']} steps ({d['accuracy_steps'] * d['dt']:g} s) "
+            "under random held tendon tensions up to "
+            f"{d['tension_max']:g} N.\n\n```bash\n{CONTACT_COST_RUNS}```")
+
+
+def contact_swing(root: Path) -> str:
+    d = load(root, "contact.json")
+    rows = [[r["layout"], num(r["throws_per_s"], 0), f"{r['slowdown_vs_first']:.1f}x", f"{r['compile_s']:.1f} s",
+             f"{1e3 * r['deepest_penetration_m']:.1f} mm"] for r in d["rows"]]
+    return (table(["layout", "throws/s", "slowdown", "compile", "deepest penetration"], rows)
+            + f"\n\nThe paper's swing, `{d['integrator']}`, {d['n_steps']} steps per throw, batch "
+            f"{d['rows'][0]['batch']}; {d['load_average_before']}. Data: `benchmarks/contact.json`."
+            "\n\n```bash\npython experiments/bench_contact.py --json benchmarks/contact.json\n```")
+
+
 def benchmark_task_runs(root: Path) -> str:
     """Every kept training run of the four benchmark tasks (``benchmarks/curvature_ppo_study/``)."""
     sys.path.insert(0, str(root / "experiments"))
@@ -535,6 +586,8 @@ STUDIES = {
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
     "compile_time": compile_time,
+    "contact_cost": contact_cost,
+    "contact_swing": contact_swing,
 }
 
 

@@ -13,7 +13,8 @@ and the fraction of throws that touched anything or ended non-finite.
 
 Obstacles: one sphere (r = 10 cm) at (0.75, -0.55, 0), which every throw hits; 12
 capsules (r = 1.5 cm, 0.4 m long, along z) on a 3 x 4 grid across the swing's
-upper half, some in reach and some not.
+upper half, some in reach and some not; and the same with the broad phase
+(``Contact.nearest`` 4: the law on each piece's 4 nearest capsules).
 
     python experiments/bench_contact.py [--repeats 5] [--batch 1024] [--json benchmarks/contact.json]
 
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 import jax
@@ -41,7 +43,8 @@ def layouts() -> dict[str, gv.Contact | None]:
     sphere = gv.Sphere(centre=(0.75, -0.55, 0.0), radius=0.1)
     capsules = tuple(gv.Capsule(start=(x, y, -0.2), end=(x, y, 0.2), radius=0.015)
                      for x in (0.55, 0.8, 1.05) for y in (-0.9, -0.5, -0.1, 0.3))
-    return {"none": None, "sphere": gv.Contact(obstacles=(sphere,)), "12 capsules": gv.Contact(obstacles=capsules)}
+    return {"none": None, "sphere": gv.Contact(obstacles=(sphere,)), "12 capsules": gv.Contact(obstacles=capsules),
+            "12 capsules nearest 4": gv.Contact(obstacles=capsules, nearest=4)}
 
 
 def make_throws(contact, n_steps: int, integrator: str, save_every: int | None = None):
@@ -64,7 +67,8 @@ def main() -> None:
     ap.add_argument("--integrator", default="rk4")
     ap.add_argument("--steps", type=int, default=1500)  # dt <= 2 ms for the longest throw
     ap.add_argument("--json", type=str, default=None)
-    ap.add_argument("--layouts", type=str, default="none,sphere,12 capsules", help="comma-separated, 'none' first")
+    ap.add_argument("--layouts", type=str, default="none,sphere,12 capsules,12 capsules nearest 4",
+                    help="comma-separated, 'none' first")
     args = ap.parse_args()
     before = load_average()
     print(before)
@@ -77,7 +81,7 @@ def main() -> None:
         check = make_throws(contact, args.steps, args.integrator, save_every=1)
         tip, gap, touched = check(*actions(args.check_batch, seed=1))
         row = dict(layout=name, batch=args.batch, throws_per_s=args.batch / run_s, median_run_s=run_s,
-                   compile_s=compile_s,
+                   compile_s=compile_s, loadavg=os.getloadavg(),
                    deepest_penetration_m=float(-jnp.min(gap)) if gap.size else 0.0,
                    fraction_touching=float(jnp.mean(jnp.any(touched, axis=-1))),
                    fraction_nonfinite=float(jnp.mean(~jnp.all(jnp.isfinite(tip), axis=-1))),
@@ -92,7 +96,8 @@ def main() -> None:
         if args.json:  # after every layout: an interrupted run keeps what it measured
             with open(args.json, "w") as fh:
                 json.dump(dict(integrator=args.integrator, n_steps=args.steps, rows=rows, load_average_before=before,
-                               load_average_after=load_average(), cpu_count=jax.local_device_count(),
+                               load_average_after=load_average(), getloadavg_after=os.getloadavg(),
+                               cpu_count=jax.local_device_count(),
                                jax=jax.__version__), fh, indent=2)
     print("slowdown against the first layout: "
           + ", ".join(f"{r['layout']}: {r['slowdown_vs_first']:.2f}x" for r in rows))

@@ -77,7 +77,11 @@ class Contact:
 
     obstacles: a tuple of ``Plane``, ``Sphere``, ``Capsule``, ``Box``; rod: the penalty on
     soft links (per metre); site: the penalty at rigid ``sites``; n_points: contact samples
-    per soft link (static), see ``points_for`` to choose it.
+    per soft link (static), see ``points_for`` to choose it; nearest (static): None, or a
+    broad phase: each rod piece runs the law against only its ``nearest`` nearest static spheres
+    and capsules (by exact gap; the gaps reported are still over all). Exact while no piece is
+    within the smoothing length of more than that many at once (a piece at a cage's corner
+    touches three bars); cheaper when there are many more obstacles than that.
     """
 
     obstacles: tuple = ()
@@ -85,6 +89,7 @@ class Contact:
     site: Penalty = Penalty(stiffness=1e5, damping=200.0, smoothing=1e-4)
     sites: tuple = ()
     n_points: int = struct.field(pytree_node=False, default=21)
+    nearest: int | None = struct.field(pytree_node=False, default=None)
 
     def validate(self, robot: Robot) -> None:
         """``check_robot``'s hook: ``check`` (a bad value raises, naming it)."""
@@ -110,13 +115,14 @@ SAFE_AREA = 1e-6  # times l^2: where I0 is this small the centroid I1 / I0 falls
 
 def _groups(obstacles) -> list[tuple[Any, bool]]:
     """The obstacles, the static spheres and the static capsules each stacked into one (leaves with
-    a leading axis) when there are several: the law then runs once over all of a kind."""
+    a leading axis, also a single one): the law then runs once over all of a kind, with the
+    profile's derivatives by hand (``stacked_contact``); moving ones go one by one through autodiff."""
     stackable = lambda o, kind: type(o) is kind and o.motion is None  # noqa: E731
     out: list[tuple[Any, bool]] = []
     rest = list(obstacles)
     for kind in (Sphere, Capsule):
         same = [o for o in obstacles if stackable(o, kind)]
-        if len(same) > 1:
+        if same:
             # as arrays first: a leaf given as a tuple of floats is a pytree of floats
             same = [o.replace(**{f.name: jnp.asarray(getattr(o, f.name)) for f in dataclasses.fields(o)
                                  if f.name != "motion"}) for o in same]
@@ -180,7 +186,7 @@ def _pair(obs, p, tangent, omega, vel, radius, lo, hi, pen: Penalty, t):
     return f_el + f, m_el + jnp.cross(arm, f), g, energy
 
 
-def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
+def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t, nearest: int | None = None):
     """The contact wrench on one rod piece or site from every obstacle.
 
     p (..., 3) world centre, R (..., 3, 3) world rotation (column 0: the tangent), eta
@@ -188,6 +194,7 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     the tangent (m; None for a site: a ball, forces per site). Returns (body wrench (..., 6):
     moment N m, force N, in the section's frame; world force (..., 3) N; the smallest gap
     over the obstacles (...), m, negative when penetrating; the penalty's energy (...), J).
+    nearest: ``Contact.nearest`` (pieces only).
     """
     tangent = R[..., :, 0]
     omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
@@ -197,7 +204,7 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t):
     energy = jnp.zeros(p.shape[:-1], p.dtype)
     for obs, stacked in _groups(obstacles):
         if stacked and lo is not None:
-            f3, m3, g, e = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen)
+            f3, m3, g, e = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen, nearest)
             force, moment = force + jnp.stack(f3, -1), moment + jnp.stack(m3, -1)
             gap_min, energy = jnp.minimum(gap_min, g), energy + e
             continue
@@ -234,7 +241,8 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
         half = 0.5 * float(Xc[1] - Xc[0]) * link.length  # the piece around each sample: half a spacing each way
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
-        w, f, g, e = law(p, R, eta, samples.radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t)
+        w, f, g, e = law(p, R, eta, samples.radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t,
+                         contact.nearest)
         terms = pull(tuple(w[:, k] for k in range(6)))
         live = [j for j, x in enumerate(terms) if not lie.is_zero(x)]
         if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
@@ -318,6 +326,8 @@ def check(robot: Robot) -> None:
         return
     require(isinstance(c, Contact), "contact", type(c).__name__, "None or a gvsjax.Contact")
     integer("contact.n_points", c.n_points, low=2)
+    if c.nearest is not None:
+        integer("contact.nearest", c.nearest, low=1)
     for name, pen in (("contact.rod", c.rod), ("contact.site", c.site)):
         require(isinstance(pen, Penalty), name, type(pen).__name__, "a Penalty")
         positive(f"{name}.stiffness", pen.stiffness)

@@ -157,16 +157,69 @@ def segment_closest(te, b1, b2, ee, lo, hi):
     return u, jnp.clip((u * te + b2) / ee, 0.0, 1.0), centre, sin2
 
 
+def within(x, lo, hi):
+    """d clip(x, lo, hi) / dx: 1 strictly inside, else 0."""
+    return ((x > lo) & (x < hi)).astype(x.dtype)
+
+
+def segment_closest_back(te, b1, b2, ee, lo, hi, g_u, g_sigma, g_centre, g_sin2):
+    """The reverse pass of ``segment_closest`` by hand: cotangents of (u, sigma, centre, sin2) ->
+    those of (te, b1, b2). Its derivatives to rounding (away from the clips' corners, where it
+    takes one side); one fused pass instead of autodiff's stored residuals."""
+    s2 = 1.0 - te * te / ee
+    sin2 = jnp.maximum(s2, 0.0)
+    den = jnp.maximum(ee * sin2, TINY)
+    r0 = (b2 - b1 * te) / den
+    s0 = jnp.clip(r0, 0.0, 1.0)
+    c0 = s0 * te - b1
+    r1 = (c0 * te + b2) / ee
+    s1 = jnp.clip(r1, 0.0, 1.0)
+    centre = s1 * te - b1
+    u = jnp.clip(centre, lo, hi)
+    r2 = (u * te + b2) / ee
+    g_r2 = g_sigma * within(r2, 0.0, 1.0)
+    g_u = g_u + g_r2 * te / ee
+    g_te, g_b2 = g_r2 * u / ee, g_r2 / ee
+    g_c = g_centre + g_u * within(centre, lo, hi)
+    g_r1 = g_c * te * within(r1, 0.0, 1.0)
+    g_te, g_b1 = g_te + g_c * s1, -g_c
+    g_c0 = g_r1 * te / ee
+    g_te, g_b2 = g_te + g_r1 * c0 / ee, g_b2 + g_r1 / ee
+    g_r0 = g_c0 * te * within(r0, 0.0, 1.0)
+    g_te, g_b1 = g_te + g_c0 * s0, g_b1 - g_c0
+    g_b2, g_b1, g_te = g_b2 + g_r0 / den, g_b1 - g_r0 * te / den, g_te - g_r0 * b1 / den
+    g_sin2 = g_sin2 - g_r0 * r0 / den * ee * (ee * sin2 > TINY)
+    return g_te - 2.0 * te / ee * g_sin2 * (s2 > 0.0), g_b1, g_b2
+
+
 def capsule_bend(te, b2, ee, sin2, lo, hi, reach):
     """The capsule's profile curvature over a ball's: along a piece crossing the cylinder at
     angle theta the distance to the axis grows like sqrt(dist^2 + u^2 sin^2 theta), so sin^2;
     past an end cap a ball's, 1. Blended (smoothstep) as the piece's extent, projected on the
     axis, leaves the segment by up to ``reach`` (m), so the energy stays continuous."""
+    return _bend(te, b2, ee, sin2, lo, hi, reach)[0]
+
+
+def _bend(te, b2, ee, sin2, lo, hi, reach):
     s_lo, s_hi = (b2 + lo * te) / ee, (b2 + hi * te) / ee
-    past = jnp.maximum(jnp.maximum(jnp.minimum(s_lo, s_hi) - 1.0, -jnp.maximum(s_lo, s_hi)), 0.0)
+    below, above = jnp.minimum(s_lo, s_hi) - 1.0, -jnp.maximum(s_lo, s_hi)
+    past = jnp.maximum(jnp.maximum(below, above), 0.0)
     x = jnp.minimum(past * jnp.sqrt(ee) / reach, 1.0)
     blend = x * x * (3.0 - 2.0 * x)
-    return jnp.maximum(sin2 + (1.0 - sin2) * blend, LEAST_BEND)
+    bend = sin2 + (1.0 - sin2) * blend
+    return jnp.maximum(bend, LEAST_BEND), (s_lo, s_hi, below, above, past, x, blend, bend)
+
+
+def capsule_bend_back(te, b2, ee, sin2, lo, hi, reach, g):
+    """The reverse pass of ``capsule_bend`` by hand: its cotangent -> those of (te, b2, sin2)."""
+    _, (s_lo, s_hi, below, above, past, x, blend, bend) = _bend(te, b2, ee, sin2, lo, hi, reach)
+    g = g * (bend > LEAST_BEND)
+    g_past = g * (1.0 - sin2) * 6.0 * x * (1.0 - x) * jnp.sqrt(ee) / reach * (past > 0.0)
+    g_min, g_max = g_past * (below >= above), -g_past * (below < above)
+    first = s_lo <= s_hi  # s_lo is the min
+    g_lo = jnp.where(first, g_min, g_max)
+    g_hi = jnp.where(first, g_max, g_min)
+    return (g_lo * lo + g_hi * hi) / ee, (g_lo + g_hi) / ee, g * (1.0 - blend)
 
 
 @struct.dataclass

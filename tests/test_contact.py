@@ -262,6 +262,7 @@ def test_vmap_over_plane_heights_and_grad_of_the_rest_height_with_respect_to_the
     (lambda: gv.Contact(rod=gv.Penalty(friction=-0.1)), "contact.rod.friction"),
     (lambda: gv.Contact(rod=gv.Penalty(friction=0.5, static_friction=0.4)), "contact.rod.static_friction"),
     (lambda: gv.Contact(n_points=1), "contact.n_points"),
+    (lambda: gv.Contact(nearest=0), "contact.nearest"),
     (lambda: gv.Contact(obstacles=(gv.Sphere(radius=0.0),)), "contact.obstacles[0].radius"),
     (lambda: gv.Contact(obstacles=(gv.Plane(normal=(0.0, 0.0, 0.0)),)), "contact.obstacles[0].normal"),
     (lambda: gv.Contact(obstacles=(gv.Capsule(start=(0.0, 0.0, 0.0), end=(0.0, 0.0, 0.0)),)), "obstacles[0].end"),
@@ -311,8 +312,9 @@ def test_a_scanned_link_touches_as_the_unrolled_one():
 
 
 def test_stacked_spheres_and_capsules_give_the_law_of_each_obstacle_alone():
-    """The law over stacks of static spheres and capsules (one component-wise pass) equals the sum
-    of the law over each obstacle alone, with friction, at pieces near, touching and inside them."""
+    """The law over stacks of static spheres and capsules (one component-wise pass, the profile's
+    derivatives by hand) equals the sum of the law over each obstacle alone through autodiff, with
+    friction, at pieces near, touching and inside them."""
     rng = np.random.default_rng(0)
     n_c = 9
     p = jnp.asarray(rng.uniform(-0.2, 0.2, (n_c, 3)))
@@ -325,7 +327,9 @@ def test_stacked_spheres_and_capsules_give_the_law_of_each_obstacle_alone():
                  gv.Plane((0.0, -0.15, 0.0)))
     pen = contact.Penalty(stiffness=1e6, damping=1e3, smoothing=1e-3, friction=0.4)
     w, f, g, e = contact.law(p, R, eta, radius, lo, hi, obstacles, pen, 0.0)
-    alone = [contact.law(p, R, eta, radius, lo, hi, (o,), pen, 0.0) for o in obstacles]
+    # a still "moving" obstacle takes the law one obstacle at a time, its derivatives by autodiff
+    still = lambda o: o.replace(motion=lambda s: jnp.zeros(3))  # noqa: E731
+    alone = [contact.law(p, R, eta, radius, lo, hi, (still(o),), pen, 0.0) for o in obstacles]
     assert float(jnp.max(jnp.abs(f))) > 1.0 and float(jnp.min(g)) < 0.0  # some pieces do touch
     np.testing.assert_allclose(w, sum(a[0] for a in alone), rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(f, sum(a[1] for a in alone), rtol=1e-12, atol=1e-9)
