@@ -96,7 +96,11 @@ def evaluate_controller(task: str, out, config, n_episodes: int = 100, seed: int
 
 
 def parse_args(argv: list[str]) -> dict:
-    args = {**KEYS, **keyvalue.parse(argv, {k: keyvalue.typed(v) for k, v in KEYS.items()})}
+    given = keyvalue.parse(argv, {k: keyvalue.typed(v) for k, v in KEYS.items()})
+    args = {**KEYS, **given}
+    if not args["controller"] and set(given) & set(MPC_KEYS):
+        raise ValueError(f"{sorted(set(given) & set(MPC_KEYS))} set the controller: add controller=mpc (a checkpoint's "
+                         "policy takes none of them)")
     if args["controller"] not in ("", "mpc"):
         raise ValueError(f"controller={args['controller']!r} is invalid; expected 'mpc' (or leave it out and give "
                          "checkpoint=)")

@@ -96,7 +96,8 @@ def test_cli_checks_controller_keys_before_compiling(capsys, monkeypatch):
              (["controller=mpc", "task=integrator", "checkpoint=runs/x"], "either checkpoint= .* or controller=mpc"),
              (["controller=mpc", "task=integrator", "horizon=0"], r"horizon=0 is invalid.*\[1, 1000\]"),
              (["controller=mpc", "task=chess"], "task='chess' is unknown"),
-             (["controller=mpc", "task=basketball"], "task='basketball' evaluates policies only"))
+             (["controller=mpc", "task=basketball"], "task='basketball' evaluates policies only"),
+             (["checkpoint=runs/x", "horizon=5"], r"\['horizon'\] set the controller: add controller=mpc"))
     for argv, match in cases:
         assert evaluate.main(argv) == 2
         assert __import__("re").search(match, capsys.readouterr().err)
