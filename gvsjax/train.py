@@ -1,12 +1,14 @@
-"""Train a PPO agent on a gvsjax task from the command line.
+"""Train an agent on a gvsjax task from the command line: PPO (``gvsjax.ppo``) or, with
+``algo=sac``, SAC (``gvsjax.sac``).
 
     python -m gvsjax.train task=basketball [key=value ...]
+    python -m gvsjax.train task=follow_target algo=sac [key=value ...]
     python -m gvsjax.train --help
 
-Every ``PPOConfig`` field is a ``key=value`` override (``--help`` lists them
-with each task's defaults); the run options are listed in ``RUN_DOCS``. The
-run folder ``out`` receives ``config.json``, ``metrics.csv`` (one row per PPO
-update; also TensorBoard events when ``tensorboardX`` or ``torch`` is
+Every field of the algorithm's config (``PPOConfig``, ``SACConfig``) is a ``key=value``
+override (``--help`` lists them with each task's defaults); the run options are listed in
+``RUN_DOCS``. The run folder ``out`` receives ``config.json``, ``metrics.csv`` (one row per PPO
+update or SAC iteration; also TensorBoard events when ``tensorboardX`` or ``torch`` is
 installed), ``checkpoint.ckpt`` (``gvsjax.ppo.checkpoint``) and, at the end,
 the evaluation of ``gvsjax.evaluate`` (eval.json, the per-episode table and
 the task's figures). ``resume=true out=DIR`` continues the run in DIR from its
@@ -45,7 +47,7 @@ import jax
 import numpy as np
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import distributed, keyvalue, sharding
+from gvsjax import distributed, keyvalue, sac, sharding
 from gvsjax.ppo import (
     FIELD_DOCS,
     PRESETS,
@@ -61,10 +63,13 @@ from gvsjax.ppo import (
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.ppo.config import field_parsers
 from gvsjax.runlog import MetricsLog, non_finite, rows_of
+from gvsjax.sac import config as sac_config
 from gvsjax.tasks import DEFAULT_TASK, Environment, make, randomized, registered
 
 RUN_DOCS: dict[str, tuple[Any, str]] = {
     "task": (DEFAULT_TASK, "task to train (one of the registered tasks, see below)"),
+    "algo": ("", "learning algorithm: ppo, or sac (off-policy, with a replay buffer; the algorithm of the "
+                 "soft-arm benchmark's published results); empty: ppo, or the resumed run's"),
     "out": ("", "run folder (default runs/<task>-<date>-<time>)"),
     "resume": (False, "continue the run in `out` from its last checkpoint"),
     "preset": ("none", f"override set applied before yours: {sorted(PRESETS)}"),
@@ -94,12 +99,15 @@ RUN_DOCS: dict[str, tuple[Any, str]] = {
 # Config keys that fix the shapes or the meaning of a saved TrainState.
 RESUME_FIXED = ("seed", "num_envs", "network", "shared_hidden", "actor_hidden", "critic_hidden",
                 "activation", "std_mode")
+SAC_RESUME_FIXED = ("seed", "num_envs", "hidden", "layer_norm", "buffer_size")
+ALGOS = ("ppo", "sac")
 _RUN_RANGES: dict[str, tuple[Any, str]] = {
     "checkpoint_every": (lambda v: v >= 0, "seconds >= 0 (0: after every call; inf: only at the end)"),
     "eval_targets": (lambda v: v >= 0, "an int >= 0"),
     "eval_seed": (lambda v: v >= -1, "an int >= -1"),
     "updates_per_call": (lambda v: v >= 0, "an int >= 0"),
     "sim_dtype": (lambda v: v in ("", "float64", "float32"), "float64, float32 or empty (the task's)"),
+    "algo": (lambda v: v in ("", *ALGOS), "ppo, sac or empty (ppo, or the resumed run's)"),
     "num_processes": (lambda v: v >= 1, "an int >= 1"),
     "process_id": (lambda v: v >= 0, "an int >= 0 (and < num_processes)"),
 }
@@ -123,11 +131,23 @@ def _run_parser(key: str):
 
 
 def parse_args(argv: list[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``key=value`` words -> (run options, PPOConfig overrides). Errors list valid keys."""
-    options = {**{k: _run_parser(k) for k in RUN_DOCS}, **field_parsers()}
+    """``key=value`` words -> (run options, the algorithm's config overrides). Errors list valid keys."""
+    options = {**{k: _run_parser(k) for k in RUN_DOCS}, **sac_config.field_parsers(), **field_parsers()}
     given = keyvalue.parse(argv, options)
     run = {k: given.get(k, default) for k, (default, _) in RUN_DOCS.items()}
-    ppo = {k: v for k, v in given.items() if k in FIELD_DOCS}
+    if run["resume"] and run["out"] and not run["algo"]:
+        run["algo"] = _saved_algo(run["out"])
+    fields = sac.FIELD_DOCS if run["algo"] == "sac" else FIELD_DOCS
+    foreign = sorted(set(given) - set(RUN_DOCS) - set(fields))
+    if foreign:
+        other = "ppo" if run["algo"] == "sac" else "sac"
+        raise ValueError(f"{foreign} {'is' if len(foreign) == 1 else 'are'} {other} keys, not keys of "
+                         f"algo={run['algo'] or 'ppo'}; its keys: {sorted(fields)}")
+    ppo = {k: v for k, v in given.items() if k in fields}
+    if run["algo"] == "sac" and run["preset"] != "none":
+        raise ValueError(f"preset={run['preset']!r} is invalid with algo=sac; presets are PPO override sets")
+    if run["algo"] == "sac" and run["num_processes"] > 1:
+        raise ValueError(f"num_processes={run['num_processes']} is invalid with algo=sac; SAC runs in one process")
     if run["task"] not in registered():
         raise ValueError(f"task={run['task']!r} is unknown; choose one of {registered()}")
     if run["preset"] not in PRESETS:
@@ -150,21 +170,37 @@ def training_params(env: Environment, targets: str = "", sim_dtype: str = "") ->
     return env.with_sim_dtype(env.train_params(targets), sim_dtype or env.train_sim_dtype)
 
 
-def task_defaults(task: str) -> dict[str, Any]:
-    """The task's PPO overrides (``Environment.ppo_defaults``)."""
-    return dict(make(task).ppo_defaults)
+def task_defaults(task: str, algo: str = "ppo") -> dict[str, Any]:
+    """The task's overrides of the algorithm's config (``Environment.ppo_defaults``, ``sac_defaults``)."""
+    env = make(task)
+    return dict(env.sac_defaults if algo == "sac" else env.ppo_defaults)
+
+
+def _algo(algo: str):
+    """``(init, num_updates)`` of ``algo``."""
+    return (sac.init, sac.num_updates) if algo == "sac" else (init, num_updates)
+
+
+def _saved_algo(out: str) -> str:
+    """The algorithm of the run in folder ``out`` (its config.json), "" when there is none."""
+    try:
+        return str(json.loads((Path(out) / "config.json").read_text()).get("algo", "ppo"))
+    except (OSError, ValueError, AttributeError):
+        return ""
 
 
 _STEP_CACHE: dict[tuple, Any] = {}  # jitted update functions, reused within one process
 
 
-def default_updates_per_call(config: PPOConfig, episode_length: int) -> int:
+def default_updates_per_call(config: PPOConfig | sac.SACConfig, episode_length: int) -> int:
     """~8k env steps per jitted call: a responsive progress bar without Python overhead per update."""
+    if isinstance(config, sac.SACConfig):
+        return max(1, min(sac.num_updates(config, episode_length), 8192 // config.num_envs))
     total = num_updates(config, episode_length)
     return max(1, min(total, 8192 // (config.num_envs * config.num_steps)))
 
 
-def update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targets: str = "",
+def update_fn(task: str, config: PPOConfig | sac.SACConfig, env, env_params, per_call: int, targets: str = "",
               sim_dtype: str = ""):
     """The jitted update, cached per program: runs differing only in seed share one (the
     seed lives in the TrainState's key), so a seed sweep in one process compiles once."""
@@ -172,7 +208,10 @@ def update_fn(task: str, config: PPOConfig, env, env_params, per_call: int, targ
     randomization = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ()
     key = (task, config, per_call, targets, sim_dtype or env.train_sim_dtype, randomization)
     if key not in _STEP_CACHE:
-        _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
+        if isinstance(config, sac.SACConfig):
+            _STEP_CACHE[key] = sac.make_update(config, env, env_params, updates_per_call=per_call)
+        else:
+            _STEP_CACHE[key] = make_update(config, env, env_params, updates_per_call=per_call)
     return _STEP_CACHE[key]
 
 
@@ -188,18 +227,29 @@ def help_text() -> str:
     for task in registered():
         config = build_config(task_defaults(task), "none", {})
         lines += ["", f"PPO config (defaults for task={task}):", describe(config)]
+    for task in registered():
+        if task_defaults(task, "sac"):
+            sac_defaults = sac.build_config(task_defaults(task, "sac"), {})
+            lines += ["", f"SAC config, algo=sac (defaults for task={task}):", sac.describe(sac_defaults)]
+    lines += ["", "SAC config, algo=sac (defaults of the other tasks):", sac.describe()]
     return "\n".join(lines)
 
 
-def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConfig, dict, dict]:
+def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConfig | sac.SACConfig, dict, dict]:
     meta = ckpt.load_raw(ckpt_path)
     task = run["task"]
     if meta["task"] != task:
         raise ValueError(f"resume: {ckpt_path} is a task={meta['task']!r} run; pass task={meta['task']}")
     if distributed.is_main():
         ckpt.remove_stale_temps(ckpt_path)  # left by a write the kill interrupted
-    saved = config_from_json(meta["config"], f"the config saved in {ckpt_path}")
-    for key in RESUME_FIXED:
+    saved_algo = meta["config"].get("algo", "ppo")
+    if run["algo"] and run["algo"] != saved_algo:
+        raise ValueError(f"resume: algo={run['algo']!r} differs from the checkpoint's {saved_algo!r}; "
+                         "start a new run instead")
+    source = f"the config saved in {ckpt_path}"
+    saved: Any = (sac.config_from_json(meta["config"], source, ckpt.RUN_KEYS) if saved_algo == "sac"
+                  else config_from_json(meta["config"], source))
+    for key in SAC_RESUME_FIXED if saved_algo == "sac" else RESUME_FIXED:
         if key in overrides and overrides[key] != getattr(saved, key):
             raise ValueError(f"resume: {key}={overrides[key]!r} differs from the checkpoint's "
                              f"{getattr(saved, key)!r}; it cannot change on resume "
@@ -222,10 +272,11 @@ def _resume_config(run: dict, overrides: dict, ckpt_path: Path) -> tuple[PPOConf
         raise ValueError(f"resume: sim_dtype={run['sim_dtype']!r} differs from the checkpoint's "
                          f"{saved_dtype!r}; start a new run instead")
     return saved.replace(**overrides), {**run, "train_targets": saved_targets, "sim_dtype": saved_dtype,
-                                        "randomize": saved_randomize, "randomize_observe": saved_observe}, meta
+                                        "randomize": saved_randomize, "randomize_observe": saved_observe,
+                                        "algo": saved_algo}, meta
 
 
-def _process_envs(config: PPOConfig, state) -> str:
+def _process_envs(config: Any, state) -> str:
     """Which envs this process steps, e.g. ``process 1 of 2: envs 8:16 of 16``."""
     spans = sorted((s.index[0].start or 0, s.index[0].stop or config.num_envs)
                    for s in state.last_obs.addressable_shards)
@@ -249,8 +300,11 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
             raise ValueError("resume=true needs out=<run folder>")
         config, run, meta = _resume_config(run, overrides, ckpt_path)
     else:
-        config = build_config(task_defaults(task), run["preset"], overrides)
-        run = {**run, "sim_dtype": run["sim_dtype"] or env.train_sim_dtype}
+        algo = run.get("algo") or "ppo"
+        config = (sac.build_config(task_defaults(task, "sac"), overrides) if algo == "sac"
+                  else build_config(task_defaults(task), run["preset"], overrides))
+        run = {**run, "sim_dtype": run["sim_dtype"] or env.train_sim_dtype, "algo": algo}
+    start, iterations = _algo(run["algo"])
     # randomize= wraps the task (a no-op when empty); its canonical text is what the run records
     env = randomized.wrap(env, run.get("randomize", ""), run.get("randomize_observe", False))
     ranges, observe = (env.ranges, env.observe) if isinstance(env, randomized.Randomized) else ((), False)
@@ -261,20 +315,21 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
     if writer:
         out.mkdir(parents=True, exist_ok=True)
         (out / "config.json").write_text(json.dumps(
-            {"task": task, "preset": run["preset"], "train_targets": run["train_targets"],
+            {"task": task, "algo": run["algo"], "preset": run["preset"], "train_targets": run["train_targets"],
              "sim_dtype": run["sim_dtype"], "randomize": run["randomize"],
              "randomize_observe": run["randomize_observe"], **dataclasses.asdict(config)}, indent=2))
 
     t0 = time.perf_counter()
     env_params = training_params(env, run["train_targets"], run["sim_dtype"])
     with sharding.unsharded():  # the whole state on each process, then each keeps its part
-        state = init(config, env, env_params, jax.random.PRNGKey(config.seed))
+        state = start(config, env, env_params, jax.random.PRNGKey(config.seed))
         if run["resume"]:
             state = ckpt.restore_state(state, meta["train_state"])
-    state = place(config, state)
+    if isinstance(config, PPOConfig):  # SAC runs on one device
+        state = place(config, state)
     if jax.process_count() > 1:
         print(_process_envs(config, state), flush=True)
-    total = num_updates(config, env.episode_length)
+    total = iterations(config, env.episode_length)
     per_call = run.get("updates_per_call") or default_updates_per_call(config, env.episode_length)
     step_fn = update_fn(task, config, env, env_params, per_call, run["train_targets"], run["sim_dtype"])
     log = MetricsLog(out, int(state.update) if run["resume"] else None) if writer else None
@@ -285,7 +340,8 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         from tqdm import tqdm
         bar = tqdm(total=config.total_episodes, initial=min(int(state.episodes), config.total_episodes),
                    unit="ep", desc=f"train {task}", dynamic_ncols=True)
-    config_dict = {"task": task, "train_targets": run["train_targets"], "sim_dtype": run["sim_dtype"],
+    config_dict = {"task": task, "algo": run["algo"], "train_targets": run["train_targets"],
+                   "sim_dtype": run["sim_dtype"],
                    "randomize": run["randomize"], "randomize_observe": run["randomize_observe"],
                    **dataclasses.asdict(config)}
     last_save, compile_s, t_train = time.perf_counter(), None, time.perf_counter()

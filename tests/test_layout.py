@@ -23,7 +23,7 @@ LAYERS = {
     "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
                        "gvsjax.simulation", "gvsjax.statics", "gvsjax.identify"]),
     "tasks": (7, ["gvsjax.tasks"]),
-    "controllers": (8, ["gvsjax.ppo", "gvsjax.mpc"]),
+    "controllers": (8, ["gvsjax.ppo", "gvsjax.sac", "gvsjax.mpc"]),
     "command line": (9, ["gvsjax.train", "gvsjax.evaluate", "gvsjax.animate", "gvsjax.runlog"]),
     "gym": (10, ["gvsjax.gym"]),
 }
@@ -171,7 +171,7 @@ def test_generic_modules_name_no_task():
 
     generic = ["train.py", "evaluate.py", "animate.py", "runlog.py", "gym.py", "plots.py", "keyvalue.py",
                "tasks/base.py", "tasks/randomized.py", "mpc.py"]
-    generic += [str(p.relative_to(ROOT)) for p in (ROOT / "ppo").glob("*.py")]
+    generic += [str(p.relative_to(ROOT)) for d in ("ppo", "sac") for p in (ROOT / d).glob("*.py")]
     for rel in generic:
         for text in _string_constants(ROOT / rel):
             for task in registered():

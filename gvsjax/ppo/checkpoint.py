@@ -28,8 +28,8 @@ import jax
 import jax.numpy as jnp
 from flax import serialization
 
-from gvsjax import distributed
-from gvsjax.ppo.config import config_from_json
+from gvsjax import distributed, sac
+from gvsjax.ppo.config import RUN_KEYS, config_from_json
 from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import policy_action
 from gvsjax.ppo.train import init
@@ -202,19 +202,28 @@ def load_policy(path):
     on the nominal model (``gvsjax.tasks.randomized.nominal`` gives the task and a policy of its
     observations). Only the network params are restored, so a policy stays loadable when the
     env's internal state (saved for resuming) gains a field; its observations must not change.
+    A run trained with ``algo=sac`` gives a ``gvsjax.sac.SACConfig`` and the actor's params.
     """
     meta = load_raw(path)
-    config = config_from_json(meta["config"], f"the config saved in {path}")
+    sac_run = meta["config"].get("algo", "ppo") == "sac"
+    source = f"the config saved in {path}"
+    config: Any = (sac.config_from_json(meta["config"], source, RUN_KEYS) if sac_run
+              else config_from_json(meta["config"], source))
     env = wrap(make(meta["task"]), meta["config"].get("randomize", ""),
                meta["config"].get("randomize_observe", False))
     env_params = env.default_params()
-    template = jax.eval_shape(lambda: init(config, env, env_params, jax.random.PRNGKey(0)))
+    start = sac.init if sac_run else init
+    template = jax.eval_shape(lambda: start(config, env, env_params, jax.random.PRNGKey(0)))
     template = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), template.params)
     params = restore_state(template, meta["train_state"], "params")  # CheckpointError if mismatched
-    return config, env, env_params, params
+    return config, env, env_params, params["actor"] if sac_run else params
 
 
 def make_policy(config, action_size: int, net_params):
-    """The deterministic policy (the Gaussian's mean, clipped) as ``obs (n, k) -> actions (n, a)``."""
+    """The deterministic policy as ``obs (n, k) -> actions (n, a)``: the Gaussian's mean, clipped
+    (PPO), or its tanh (SAC: ``config`` a ``SACConfig``, ``net_params`` the actor's)."""
+    if isinstance(config, sac.SACConfig):
+        actor = sac.make_actor(config, action_size).apply
+        return lambda obs: sac.policy_action(net_params, actor, obs).astype(jnp.float64)
     apply_fn = make_network(config, action_size).apply
     return lambda obs: policy_action(net_params, apply_fn, obs.astype(jnp.float32)).astype(jnp.float64)

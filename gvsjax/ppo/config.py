@@ -252,7 +252,7 @@ def build_config(task_defaults: dict[str, Any], preset: str, overrides: dict[str
 
 
 # keys a run's saved config holds beside the PPOConfig fields
-RUN_KEYS = ("task", "preset", "train_targets", "sim_dtype", "randomize", "randomize_observe")
+RUN_KEYS = ("task", "preset", "train_targets", "sim_dtype", "randomize", "randomize_observe", "algo")
 
 
 def config_from_json(d: dict, source: str = "config") -> PPOConfig:

@@ -164,6 +164,8 @@ class Environment:
     episode_length: ClassVar[int]  # steps after which ``done`` is True
     # PPOConfig overrides that suit this task (``python -m gvsjax.train`` applies them first)
     ppo_defaults: ClassVar[Mapping[str, Any]] = {}
+    # SACConfig overrides that suit this task (``python -m gvsjax.train algo=sac``)
+    sac_defaults: ClassVar[Mapping[str, Any]] = {}
     # names accepted by ``train_params(variant)``; the CLI key ``train_targets`` picks one
     train_variants: ClassVar[tuple[str, ...]] = ()
     rows_file: ClassVar[str] = "eval_episodes.csv"  # per-episode evaluation table
@@ -177,6 +179,9 @@ class Environment:
     randomizable: ClassVar[Mapping[str, Scale]] = ROBOT_MATERIAL
     # True: ``evaluate`` also takes a ``Controller`` (the closed-loop tasks; ``gvsjax.mpc``)
     accepts_controller: ClassVar[bool] = True
+    # True: ``episode_length`` is a time limit on a task that would go on (nothing in the state
+    # ends it), so an off-policy learner (``gvsjax.sac``) bootstraps through the last step
+    time_limit: ClassVar[bool] = False
     # the simulator precision training uses when the run leaves ``sim_dtype`` empty; evaluation
     # always simulates with ``default_params()`` (float64). "float32" needs a params ``sim_dtype``.
     train_sim_dtype: ClassVar[str] = "float64"

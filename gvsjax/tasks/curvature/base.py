@@ -59,6 +59,7 @@ class CurvatureTask(Environment):
     animation_keys = {"seed": 0, "fps": 10, "dpi": 70}
     animates_policy = True
     ppo_defaults = PPO_DEFAULTS
+    time_limit = True  # the published episodes end by a timeout; their SAC bootstraps through it
     # the published SAC's final discounted return (averaged over start steps), read from their results figure
     published_return: ClassVar[float]
     # append the tip-to-target vector to the observation (the benchmark's observation leaves it out)
