@@ -24,6 +24,9 @@ PAGES = [
      "The functional environment API (gymnax style) and the task registry."),
     ("api/ppo.md", "gvsjax.ppo", "gvsjax.ppo",
      "PPO: configuration, networks, losses, rollouts, the jittable training function and checkpoints."),
+    ("api/sac.md", "gvsjax.sac", "gvsjax.sac",
+     "SAC: configuration, networks, losses, the replay buffer and the jittable training iteration "
+     "(`python -m gvsjax.train algo=sac`)."),
     ("api/mpc.md", "gvsjax.mpc", "gvsjax.mpc",
      "Model-predictive control by gradients through the simulator: a reference controller for the "
      "closed-loop tasks."),

@@ -1,11 +1,13 @@
-"""PPO settings and observations for the benchmark tasks: one training run per call, its result kept.
+"""Algorithms, settings and observations for the benchmark tasks: one training run per call, its
+result kept.
 
     python experiments/curvature_ppo_study.py --task follow_target --name defaults --episodes 2048
+    python experiments/curvature_ppo_study.py --task follow_target --name sac --episodes 4000 -- algo=sac
     python experiments/curvature_ppo_study.py --task follow_target --name rel-short --relative \\
         --episodes 2048 -- num_steps=8 num_minibatches=4 update_epochs=8
 
-Trains ``--task`` with its PPO defaults plus the ``key=value`` overrides after ``--`` (as
-``python -m gvsjax.train``), with ``--relative`` appending the tip-to-target vector to the
+Trains ``--task`` with its defaults (PPO, or SAC with ``algo=sac``) plus the ``key=value`` overrides
+after ``--`` (as ``python -m gvsjax.train``), with ``--relative`` appending the tip-to-target vector to the
 benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Writes
 ``benchmarks/curvature_ppo_study/<task>_<name>_e<episodes>_s<seed>.json``: the command, the config, the timing,
 the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
@@ -51,14 +53,19 @@ def curve(run: Path) -> list[dict]:
                 for row in csv.DictReader(f)]
 
 
+def env_steps(d: dict) -> int:
+    """The env steps of a kept run: updates x num_envs x num_steps (PPO), iterations x num_envs (SAC)."""
+    return d["timing"]["updates"] * d["config"]["num_envs"] * d["config"].get("num_steps", 1)
+
+
 def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
     """A markdown table of every kept run: its variant, budget, wall time and evaluation."""
-    lines = ["| task | variant | seed | overrides | env steps | train s (load) | eval episodes | discounted return "
-             "| evaluation |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| task | algorithm | variant | seed | overrides | env steps | train s (load) | eval episodes "
+             "| discounted return | evaluation |", "|---|---|---|---|---|---|---|---|---|---|"]
     for path in sorted(folder.glob("*.json")):
         d = json.loads(path.read_text())
         e, t = d["eval"], d["timing"]
-        steps = t["updates"] * d["config"]["num_envs"] * d["config"]["num_steps"]
+        steps = env_steps(d)
         command = d["command"].split(" -- ")
         overrides = command[1] if len(command) > 1 else ""
         physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
@@ -67,7 +74,7 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
                          and not k.startswith(("discounted", "return"))})
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
         load = "/".join(f"{x:.1f}" for x in d.get("load_average", [])) or "?"
-        lines.append(f"| {d['task']} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
+        lines.append(f"| {d['task']} | {d['config'].get('algo') or 'ppo'} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
                      f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} ({load}) | "
                      f"{e['n_episodes']} | "
                      f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
@@ -94,15 +101,15 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
         env = make(task)
         for d in (d for d in runs if d["task"] == task):
             points = [c for c in d["curve"] if "episode_benchmark_return" in c]
-            label = f"{d['name']} s{d['seed']}"
+            label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}"
             final = d["eval"]["discounted_return_average"]["mean"]
-            total = d["timing"]["updates"] * d["config"]["num_envs"] * d["config"]["num_steps"]
+            total = env_steps(d)
             for ax, x_of, end in ((row[0], lambda c: c["update"], total),
                                   (row[1], lambda c: c["wall_s"] / 60, d["timing"]["train_s"] / 60)):
                 if points:
                     x = np.array([x_of(c) for c in points], float)
                     if ax is row[0]:
-                        x = x * d["config"]["num_envs"] * d["config"]["num_steps"]
+                        x = x * env_steps(d) / d["timing"]["updates"]
                     line, = ax.plot(x, [c["episode_benchmark_return"] for c in points], lw=1, label=label)
                     ax.plot([end], [final], "o", color=line.get_color())
                 else:

@@ -76,8 +76,10 @@ def squashed_sample(mean: jax.Array, log_std: jax.Array, key: jax.Array) -> tupl
 
 
 def make_actor(config, action_size: int) -> Actor:
+    """The actor a ``SACConfig`` describes; use its ``.init``/``.apply``."""
     return Actor(action_size, config.hidden, config.layer_norm, config.min_log_std, config.max_log_std)
 
 
 def make_critic(config) -> TwinCritic:
+    """The twin critics a ``SACConfig`` describes; use their ``.init``/``.apply``."""
     return TwinCritic(config.hidden, config.layer_norm)

@@ -23,6 +23,9 @@ class Transitions:
 
 @struct.dataclass
 class Buffer:
+    """Transitions in a ring of fixed capacity: ``position`` is the next slot, ``count`` how many
+    slots hold data."""
+
     data: Transitions  # leading axis: capacity
     position: jax.Array  # int32, where the next transition goes
     count: jax.Array  # int32, transitions held (<= capacity)

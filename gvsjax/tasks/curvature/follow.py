@@ -46,6 +46,7 @@ class FollowTarget(CurvatureTask):
     episode_length = 501
     published_return = 100.0
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 4_000}
+    sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 10_000}
 
     def default_params(self) -> FollowParams:
         return FollowParams()

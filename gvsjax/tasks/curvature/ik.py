@@ -51,6 +51,7 @@ class IK4D(CurvatureTask):
     published_return = 197.0
     twist = True
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
+    sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 20_000}
 
     def default_params(self) -> IKParams:
         return IKParams()

@@ -110,6 +110,7 @@ class Obstacles2D(_Obstacles):
     directions = 1
     planar = True
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
+    sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 4_000}
 
     def default_params(self) -> ObstacleParams:
         return ObstacleParams(arm=contact_arm(True), target=(0.8, 0.0, 0.15), radius=0.1, n_obstacles=6)
@@ -129,6 +130,7 @@ class Obstacles3D(_Obstacles):
     obs_size = 121
     action_size = 10
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
+    sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 4_000}
 
     def default_params(self) -> ObstacleParams:
         return ObstacleParams()
