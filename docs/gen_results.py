@@ -406,7 +406,7 @@ def elastica_twins(root: Path) -> str:
         for sim in ("gvsjax", "pyelastica"):
             ret = r[sim]["discounted_return_average"]
             law = " (PyElastica with gvsjax's contact law)" if r.get("contact") == "gvsjax" else ""
-            label = f"`{r['task']}`{law}"
+            label = f"`{r['task']}`{law}" + (f" ({r['label']} policy)" if r.get("label") else "")
             rows.append([label if sim == "gvsjax" else "", r["n_episodes"] if sim == "gvsjax" else "",
                          "gvsjax" if sim == "gvsjax" else "PyElastica",
                          f"{ret['mean']:.2f} ({ret['median']:.2f})", _metric_cells(r["task"], r[sim]),

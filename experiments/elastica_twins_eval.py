@@ -14,6 +14,7 @@ on an otherwise idle machine). ``--contact gvsjax`` runs the obstacle twins with
 
     python experiments/elastica_twins_eval.py --task follow_target --episodes 100 [--first 16]
     python experiments/elastica_twins_eval.py --task obstacles_2d --episodes 40
+    python experiments/elastica_twins_eval.py --task obstacles_2d --episodes 100 --checkpoint RUN --label SAC
     python experiments/elastica_twins_eval.py --figure      # figures/elastica_twins.png from the JSON
     python experiments/elastica_twins_eval.py --shapes      # the rest-shape gap of the two curvature mappings
 
@@ -48,6 +49,7 @@ CHECKPOINTS = {t: os.path.join(ROOT, "runs", "curvature_ppo_study", f"{t}_defaul
                for t in ("follow_target", "ik_4d")}
 CONTACTS = {"theirs": (et.CONTACT_K, et.CONTACT_NU),  # per element
             "gvsjax": (float(PENALTY.stiffness) * et.LENGTH / et.N_EL, float(PENALTY.damping) * et.LENGTH / et.N_EL)}
+LABEL = ""  # --label: the policy of a --checkpoint, in the cache's file names and the JSON entry's name
 FIELDS = ("reward", "distance", "orientation", "deepest", "tip", "target", "valid")
 
 
@@ -91,7 +93,8 @@ def elastica_runs(task_name, n, seed, hold, contact, cache_dir, workers, first) 
     """Per-step arrays (first, T, ...) of the first ``first`` of the n PyElastica episodes, cached one file
     per episode."""
     os.makedirs(cache_dir, exist_ok=True)
-    path = lambda i: os.path.join(cache_dir, f"{task_name}_{contact}_n{n}_s{seed}_h{hold}_{i}.npz")  # noqa: E731
+    tag = f"{task_name}_{LABEL}" if LABEL else task_name
+    path = lambda i: os.path.join(cache_dir, f"{tag}_{contact}_n{n}_s{seed}_h{hold}_{i}.npz")  # noqa: E731
     todo = [(task_name, i, n, seed, hold, contact) for i in range(first) if not os.path.exists(path(i))]
     print(f"{task_name}: {first - len(todo)} PyElastica episodes cached, {len(todo)} to run", flush=True)
     t0 = time.perf_counter()
@@ -173,11 +176,12 @@ def run(args) -> None:
     wall_g = time.perf_counter() - t1
     res = compare(task, params, g, e)
     name = args.task if args.contact == "theirs" or policy is not None else f"{args.task} (gvsjax's contact law)"
+    name = f"{name} ({LABEL} policy)" if LABEL else name
     ep = int(np.argsort(res["pyelastica"]["per_episode_return"])[first // 2])  # the median episode, for the figure
     res.update(task=args.task, n_episodes=first, of_keys=f"the first {first} of split(PRNGKey({EVAL_SEED}), {n})",
                policy=CHECKPOINTS.get(args.task, f"open loop, held {args.hold} steps, "
                                                                                  f"seed {args.seed}"),
-               contact=args.contact if policy is None else None, eval_seed=EVAL_SEED,
+               contact=args.contact if policy is None else None, eval_seed=EVAL_SEED, label=LABEL,
                pyelastica={**res["pyelastica"], "seconds_per_episode": stats(e["wall_s"]),
                            "verlet_steps_per_episode": int(np.max(e["verlet_steps"])),
                            "wall_s_this_run": wall_e},
@@ -185,7 +189,8 @@ def run(args) -> None:
                figure_episode={"index": ep, "tip_gvsjax": g["tip"][ep].tolist(),
                                "tip_pyelastica": e["tip"][ep].tolist(), "target": g["target"][ep].tolist()},
                command=f"python experiments/elastica_twins_eval.py --task {args.task} --episodes {n} --first {first} "
-                       f"--hold {args.hold} --seed {args.seed} --contact {args.contact}",
+                       f"--hold {args.hold} --seed {args.seed} --contact {args.contact}"
+                       + (f" --checkpoint {args.checkpoint} --label {LABEL}" if LABEL else ""),
                load_average_before=before, load_average_after=load_average(), getloadavg=list(os.getloadavg()))
     data = json.load(open(args.json)) if os.path.exists(args.json) else {}
     data[name] = res
@@ -260,11 +265,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="of the open-loop actions")
     ap.add_argument("--contact", choices=tuple(CONTACTS), default="theirs")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--checkpoint", default="", help="a run folder or checkpoint: its policy instead of the default "
+                    "(then also give --label; one worker)")
+    ap.add_argument("--label", default="", help="names the --checkpoint's policy, e.g. SAC")
     ap.add_argument("--cache", default=os.path.join(ROOT, "runs", "elastica_twins"))
     ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "elastica_twins.json"))
     ap.add_argument("--figure", action="store_true", help="only draw figures/elastica_twins.png from the JSON")
     ap.add_argument("--shapes", action="store_true", help="only the rest-shape gap of the two curvature mappings")
     args = ap.parse_args()
+    if bool(args.checkpoint) != bool(args.label) or (args.checkpoint and args.workers != 1):
+        ap.error("--checkpoint and --label go together, with --workers 1")
+    if args.checkpoint:
+        global LABEL
+        CHECKPOINTS[args.task], LABEL = args.checkpoint, args.label
     if args.figure:
         figure(args.json, os.path.join(ROOT, "figures", "elastica_twins.png"))
     elif args.shapes:

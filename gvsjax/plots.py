@@ -53,8 +53,8 @@ def moving_average(x: np.ndarray, w: int) -> np.ndarray:
 def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     """Mean episode reward vs episodes with a ``window_episodes`` moving average (paper Fig. 3).
 
-    metrics.csv holds one row per PPO update (the mean over that update's
-    episodes), so the moving average weighs each row by its episode count.
+    metrics.csv holds one row per PPO update or SAC iteration (the mean over the episodes
+    that ended in it), so the moving average weighs each row by its episode count.
     """
     with open(metrics_csv, newline="") as f:
         rows = [r for r in csv.DictReader(f)]
@@ -64,7 +64,9 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     ok = np.isfinite(reward)  # rows where no episode ended (long episodes) have no reward
     w = max(1, int(np.ceil(window_episodes / np.median(count[ok])))) if ok.any() else 1  # rows covering the window
     fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(ep[ok], reward[ok], lw=0.6, alpha=0.4, label="per update (mean over its episodes)")
+    sac = bool(rows) and "critic_loss" in rows[0]
+    ax.plot(ep[ok], reward[ok], lw=0.6, alpha=0.4,
+            label=f"per {'iteration' if sac else 'update'} (mean over its episodes)")
     ax.plot(ep[ok], moving_average(reward[ok] * count[ok], w) / moving_average(count[ok], w),
             lw=1.8, label=f"{window_episodes}-episode moving average")
     ax.set_xlabel("episodes")
@@ -73,7 +75,7 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     ax.set_ylim(min(0.0, float(np.nanmin(reward[ok])) if ok.any() else 0.0), max(1.02, 1.02 * top))
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
-    ax.set_title("PPO learning curve")
+    ax.set_title(f"{'SAC' if sac else 'PPO'} learning curve")
     return save(fig, path)
 
 
