@@ -74,7 +74,8 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
                          and not k.startswith(("discounted", "return"))})
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
         load = "/".join(f"{x:.1f}" for x in d.get("load_average", [])) or "?"
-        lines.append(f"| {d['task']} | {d['config'].get('algo') or 'ppo'} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
+        algo = d["config"].get("algo") or "ppo"
+        lines.append(f"| {d['task']} | {algo} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
                      f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} ({load}) | "
                      f"{e['n_episodes']} | "
                      f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
