@@ -97,13 +97,14 @@ def test_every_public_name_has_a_docstring():
 def test_the_docstring_check_finds_a_name_without_one(tmp_path):
     pytest.importorskip("griffe")
     pkg = tmp_path / "gvsjax"
-    for sub in ("", "tasks", "ppo"):
+    for sub in ("", "tasks", "ppo", "sac"):
         (pkg / sub).mkdir(parents=True, exist_ok=True)
     (pkg / "__init__.py").write_text('"""A package."""\n__all__ = ["good", "bad", "CONST"]\n'
                                      'def good():\n    """Documented."""\n'
                                      'def bad():\n    pass\nCONST = 1\n')
     (pkg / "tasks" / "__init__.py").write_text('"""Tasks."""\n__all__ = ["make"]\ndef make():\n    """Make."""\n')
     (pkg / "ppo" / "__init__.py").write_text('"""PPO."""\n__all__ = ["PRESETS"]\nPRESETS = {}\n"""Presets."""\n')
+    (pkg / "sac" / "__init__.py").write_text('"""SAC."""\n__all__ = ["SACConfig"]\nclass SACConfig:\n    """Config."""\n')
     (pkg / "mpc.py").write_text('"""MPC."""\n__all__ = ["MPC"]\nclass MPC:\n    """A controller."""\n')
     found = api_reference.undocumented(api_reference.load(tmp_path))
     assert found == ["gvsjax.bad", "gvsjax.CONST"]
