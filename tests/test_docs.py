@@ -104,7 +104,8 @@ def test_the_docstring_check_finds_a_name_without_one(tmp_path):
                                      'def bad():\n    pass\nCONST = 1\n')
     (pkg / "tasks" / "__init__.py").write_text('"""Tasks."""\n__all__ = ["make"]\ndef make():\n    """Make."""\n')
     (pkg / "ppo" / "__init__.py").write_text('"""PPO."""\n__all__ = ["PRESETS"]\nPRESETS = {}\n"""Presets."""\n')
-    (pkg / "sac" / "__init__.py").write_text('"""SAC."""\n__all__ = ["SACConfig"]\nclass SACConfig:\n    """Config."""\n')
+    (pkg / "sac" / "__init__.py").write_text('"""SAC."""\n__all__ = ["SACConfig"]\n'
+                                            'class SACConfig:\n    """Config."""\n')
     (pkg / "mpc.py").write_text('"""MPC."""\n__all__ = ["MPC"]\nclass MPC:\n    """A controller."""\n')
     found = api_reference.undocumented(api_reference.load(tmp_path))
     assert found == ["gvsjax.bad", "gvsjax.CONST"]
