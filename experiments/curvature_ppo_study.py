@@ -47,7 +47,7 @@ def relative_variant(task: str) -> str:
 
 def curve(run: Path) -> list[dict]:
     keep = ("update", "episodes", "wall_s", "episode_reward", "episode_benchmark_return", "episode_distance",
-            "entropy", "approx_kl")
+            "entropy", "approx_kl", "episodes_completed")
     with open(run / "metrics.csv") as f:
         return [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")}
                 for row in csv.DictReader(f)]
@@ -56,6 +56,20 @@ def curve(run: Path) -> list[dict]:
 def env_steps(d: dict) -> int:
     """The env steps of a kept run: updates x num_envs x num_steps (PPO), iterations x num_envs (SAC)."""
     return d["timing"]["updates"] * d["config"]["num_envs"] * d["config"].get("num_steps", 1)
+
+
+def smoothed(points: list[dict], at_least: int) -> list[dict]:
+    """Consecutive curve points merged until each holds ``at_least`` finished episodes, the return
+    weighted by episode count (a SAC iteration often ends one episode; a PPO update ends many)."""
+    out, group = [], []
+    for c in points:
+        group.append(c)
+        if sum(g.get("episodes_completed", at_least) for g in group) >= at_least:
+            w = [g.get("episodes_completed", 1) for g in group]
+            ret = sum(wi * g["episode_benchmark_return"] for wi, g in zip(w, group)) / sum(w)
+            out.append({**group[-1], "episode_benchmark_return": ret})
+            group = []
+    return out
 
 
 def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
@@ -101,7 +115,7 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
     for row, task in zip(axes, tasks):
         env = make(task)
         for d in (d for d in runs if d["task"] == task):
-            points = [c for c in d["curve"] if "episode_benchmark_return" in c]
+            points = smoothed([c for c in d["curve"] if "episode_benchmark_return" in c], d["config"]["num_envs"])
             label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}"
             final = d["eval"]["discounted_return_average"]["mean"]
             total = env_steps(d)
