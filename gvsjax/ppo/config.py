@@ -17,16 +17,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import typing
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from gvsjax import keyvalue
 
-
-def _f(default: Any, help: str) -> Any:
-    return field(default=default, metadata={"help": help})
+_f = keyvalue.field
 
 
 @dataclass(frozen=True)
@@ -81,14 +78,7 @@ class PPOConfig:
         "depend on the critic's error (exact for single-step tasks)")
 
     def __post_init__(self) -> None:
-        hints = typing.get_type_hints(type(self))
-        for f in dataclasses.fields(self):
-            value = _coerce(f.name, hints[f.name], getattr(self, f.name))
-            object.__setattr__(self, f.name, value)
-        for name, (ok, allowed) in _CHECKS.items():
-            value = getattr(self, name)
-            if not ok(value):
-                raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+        keyvalue.validate(self, _CHECKS)
         batch = self.num_envs * self.num_steps
         if self.antithetic:
             if self.num_envs % 2:
@@ -119,7 +109,7 @@ class PPOConfig:
         return dataclasses.replace(self, **overrides)
 
 
-FIELD_DOCS: dict[str, str] = {f.name: f.metadata["help"] for f in dataclasses.fields(PPOConfig)}
+FIELD_DOCS: dict[str, str] = keyvalue.field_docs(PPOConfig)
 """Each ``PPOConfig`` field's help text, by field name (what ``--help`` prints)."""
 
 # Overrides approximating MATLAB rlPPOAgentOptions as the paper used them (its toolbox
@@ -178,46 +168,9 @@ _CHECKS: dict[str, tuple[Any, str]] = {
 }
 
 
-def _coerce(name: str, typ: Any, value: Any) -> Any:
-    """Check ``value`` has the field's type; widen int->float and list->tuple."""
-    bad = ValueError(f"{name}={value!r} is invalid; expected type {_type_name(typ)}")
-    if typ is bool:
-        if not isinstance(value, bool):
-            raise bad
-    elif typ is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad
-    elif typ is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise bad
-        value = float(value)
-    elif typ is str:
-        if not isinstance(value, str):
-            raise bad
-    else:  # tuple[int, ...]
-        if not isinstance(value, (tuple, list)):
-            raise bad
-        value = tuple(value)
-    return value
-
-
-def _type_name(typ: Any) -> str:
-    return typ.__name__ if typ in (bool, int, float, str) else "tuple of int"
-
-
 def parse_value(name: str, text: str) -> Any:
     """Parse the string ``text`` to the type of field ``name`` (no range checks)."""
-    typ = typing.get_type_hints(PPOConfig)[name]
-    text = text.strip()
-    try:
-        if typ in (bool, int, float, str):
-            return keyvalue.typed(typ())(text)
-        return tuple(keyvalue.parse_int(t) for t in text.strip("()[]").split(",") if t.strip())
-    except ValueError:
-        raise ValueError(
-            f"{name}={text!r} is invalid; expected {_type_name(typ)}"
-            + (" (e.g. 128,32,16)" if typ not in (bool, int, float, str) else "")
-        ) from None
+    return keyvalue.parse_field(PPOConfig, name, text)
 
 
 def field_parsers() -> dict[str, Any]:
@@ -273,10 +226,4 @@ def config_from_json(d: dict, source: str = "config") -> PPOConfig:
 
 def describe(config: PPOConfig | None = None) -> str:
     """One line per field, ``key=value  help``, for a command line's ``--help``."""
-    config = config or PPOConfig()
-    lines = []
-    for name, doc in FIELD_DOCS.items():
-        value = getattr(config, name)
-        shown = ",".join(map(str, value)) if isinstance(value, tuple) else value
-        lines.append(f"  {name}={shown}".ljust(34) + f"  {doc}")
-    return "\n".join(lines)
+    return keyvalue.describe_fields(config or PPOConfig())

@@ -17,15 +17,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import typing
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from gvsjax import keyvalue
 
-
-def _f(default: Any, help: str) -> Any:
-    return field(default=default, metadata={"help": help})
+_f = keyvalue.field
 
 
 @dataclass(frozen=True)
@@ -55,13 +52,7 @@ class SACConfig:
     max_grad_norm: float = _f(math.inf, "global gradient-norm clip of each loss (inf disables)")
 
     def __post_init__(self) -> None:
-        hints = typing.get_type_hints(type(self))
-        for f in dataclasses.fields(self):
-            object.__setattr__(self, f.name, _coerce(f.name, hints[f.name], getattr(self, f.name)))
-        for name, (ok, allowed) in _CHECKS.items():
-            value = getattr(self, name)
-            if not ok(value):
-                raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+        keyvalue.validate(self, _CHECKS)
         if self.batch_size > self.buffer_size:
             raise ValueError(f"batch_size={self.batch_size} is invalid; it must be <= buffer_size={self.buffer_size}")
         if self.num_envs > self.buffer_size:
@@ -78,7 +69,7 @@ class SACConfig:
         return dataclasses.replace(self, **overrides)
 
 
-FIELD_DOCS: dict[str, str] = {f.name: f.metadata["help"] for f in dataclasses.fields(SACConfig)}
+FIELD_DOCS: dict[str, str] = keyvalue.field_docs(SACConfig)
 """Each ``SACConfig`` field's help text, by field name (what ``--help`` prints)."""
 
 
@@ -112,41 +103,9 @@ _CHECKS: dict[str, tuple[Any, str]] = {
 }
 
 
-def _coerce(name: str, typ: Any, value: Any) -> Any:
-    """Check ``value`` has the field's type; widen int->float and list->tuple."""
-    bad = ValueError(f"{name}={value!r} is invalid; expected type "
-                     f"{typ.__name__ if typ in (bool, int, float) else 'tuple of int'}")
-    if typ is bool:
-        ok = isinstance(value, bool)
-    elif typ is int:
-        ok = isinstance(value, int) and not isinstance(value, bool)
-    elif typ is float:
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        value = float(value) if ok else value
-    else:
-        ok = isinstance(value, (tuple, list))
-        value = tuple(value) if ok else value
-    if not ok:
-        raise bad
-    return value
-
-
-def parse_value(name: str, text: str) -> Any:
-    """Parse the string ``text`` to the type of field ``name`` (no range checks)."""
-    typ = typing.get_type_hints(SACConfig)[name]
-    text = text.strip()
-    try:
-        if typ in (bool, int, float):
-            return keyvalue.typed(typ())(text)
-        return tuple(keyvalue.parse_int(t) for t in text.strip("()[]").split(",") if t.strip())
-    except ValueError:
-        kind = typ.__name__ if typ in (bool, int, float) else "tuple of int (e.g. 256,256)"
-        raise ValueError(f"{name}={text!r} is invalid; expected {kind}") from None
-
-
 def field_parsers() -> dict[str, Any]:
     """``{field: text -> value}`` for ``keyvalue.parse``."""
-    return {name: (lambda text, name=name: parse_value(name, text)) for name in FIELD_DOCS}
+    return {name: (lambda text, name=name: keyvalue.parse_field(SACConfig, name, text)) for name in FIELD_DOCS}
 
 
 def build_config(task_defaults: dict[str, Any], overrides: dict[str, Any]) -> SACConfig:
@@ -171,10 +130,4 @@ def config_from_json(d: dict, source: str = "config", ignore: tuple[str, ...] = 
 
 def describe(config: SACConfig | None = None) -> str:
     """One line per field, ``key=value  help``, for a command line's ``--help``."""
-    config = config or SACConfig()
-    lines = []
-    for name, doc in FIELD_DOCS.items():
-        value = getattr(config, name)
-        shown = ",".join(map(str, value)) if isinstance(value, tuple) else value
-        lines.append(f"  {name}={shown}".ljust(34) + f"  {doc}")
-    return "\n".join(lines)
+    return keyvalue.describe_fields(config or SACConfig())
