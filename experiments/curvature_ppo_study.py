@@ -49,8 +49,14 @@ def curve(run: Path) -> list[dict]:
     keep = ("update", "episodes", "wall_s", "episode_reward", "episode_benchmark_return", "episode_distance",
             "entropy", "approx_kl", "episodes_completed")
     with open(run / "metrics.csv") as f:
-        return [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")}
-                for row in csv.DictReader(f)]
+        rows = [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")} for row in csv.DictReader(f)]
+    # a SAC run has a row per iteration: ~500 of the rows without a finished episode, and the others
+    # merged until each holds num_envs episodes
+    stride = max(1, len(rows) // 500)
+    num_envs = json.loads((run / "config.json").read_text())["num_envs"]
+    ended = smoothed([r for r in rows if "episode_benchmark_return" in r], num_envs)
+    return sorted([r for i, r in enumerate(rows) if i % stride == 0 and "episode_benchmark_return" not in r] + ended,
+                  key=lambda r: r["update"])
 
 
 def env_steps(d: dict) -> int:
@@ -67,7 +73,7 @@ def smoothed(points: list[dict], at_least: int) -> list[dict]:
         if sum(g.get("episodes_completed", at_least) for g in group) >= at_least:
             w = [g.get("episodes_completed", 1) for g in group]
             ret = sum(wi * g["episode_benchmark_return"] for wi, g in zip(w, group)) / sum(w)
-            out.append({**group[-1], "episode_benchmark_return": ret})
+            out.append({**group[-1], "episode_benchmark_return": ret, "episodes_completed": sum(w)})
             group = []
     return out
 
