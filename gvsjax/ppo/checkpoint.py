@@ -208,7 +208,7 @@ def load_policy(path):
     sac_run = meta["config"].get("algo", "ppo") == "sac"
     source = f"the config saved in {path}"
     config: Any = (sac.config_from_json(meta["config"], source, RUN_KEYS) if sac_run
-              else config_from_json(meta["config"], source))
+                   else config_from_json(meta["config"], source))
     env = wrap(make(meta["task"]), meta["config"].get("randomize", ""),
                meta["config"].get("randomize_observe", False))
     env_params = env.default_params()
