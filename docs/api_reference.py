@@ -50,7 +50,7 @@ def _target(obj):
 
 def resolve(pkg, package: str, name: str):
     """(object, identifier for mkdocstrings) of ``package.name``. A function named like the submodule
-    that defines it (``gvsjax.curvature_arm``) is, at run time, the function: take it from the module."""
+    that defines it (``gvsjax.core.curvature_arm``) is, at run time, the function: take it from the module."""
     obj = _target(_module(pkg, package)[name])
     if obj.is_module and name in obj.members:
         obj = _target(obj[name])

@@ -135,13 +135,15 @@ def basketball_table(root: Path) -> str:
                      "", "", ""])
     return (table(["seed", "episodes", "< 10 cm", "< 1 cm", "median", "p95", "max"], rows)
             + "\n\nEvaluation: the 1000 held-out targets of `python -m gvsjax.evaluate` (seed 1,000,003 + seed), "
-            "float64; the final evaluation of `experiments/time_to_quality.py`, the default "
+            "float64; the final evaluation of `experiments/studies/time_to_quality.py`, the default "
             "`python -m gvsjax.train task=basketball` program. "
             "Data: `benchmarks/time_to_quality*.json`, `benchmarks/eval_basketball.json`.\n\n"
-            "```bash\npython experiments/time_to_quality.py --json benchmarks/time_to_quality.json          # seed 0\n"
-            "python experiments/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   "
-            "# and seeds 2-4\npython experiments/time_to_quality.py seed=0 shared_hidden=128,32,16"
-            "                      # the paper's trunk\npython experiments/baseline_basketball.py runs/a 1000 1000003"
+            "```bash\npython experiments/studies/time_to_quality.py --json benchmarks/time_to_quality.json"
+            "          # seed 0\n"
+            "python experiments/studies/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   "
+            "# and seeds 2-4\npython experiments/studies/time_to_quality.py seed=0 shared_hidden=128,32,16"
+            "                      # the paper's trunk\n"
+            "python experiments/paper/baseline_basketball.py runs/a 1000 1000003"
             "          # the baseline\n```")
 
 
@@ -184,7 +186,8 @@ def track3d_basis(root: Path) -> str:
                   + ["2 s step: max", "rms", "at 2 s"], rows)
             + f"\n\nTip distance (mm) from the reference basis (bending {rc['bending_order']}, torsion "
             f"{rc['torsion_order']}, stretch {rc['stretch_order']}, shears {rc['shear_order']}: {ref['dofs']} DoFs). "
-            "Data: `benchmarks/track3d_basis.json`.\n\n```bash\npython experiments/track3d_basis.py     # ~15 min\n```")
+            "Data: `benchmarks/track3d_basis.json`.\n\n"
+            "```bash\npython experiments/studies/track3d_basis.py     # ~15 min\n```")
 
 
 def substeps(root: Path, name: str, command: str) -> str:
@@ -206,7 +209,7 @@ def balance_substeps(root: Path) -> str:
     return (table(["steps per 0.05 s", "random: max / p95 tip error (mm)", "baseline: max / p95 (mm)",
                    "baseline closed loop: success, time to upright"], rows)
             + f"\n\nAgainst {d['reference']} steps. Data: `benchmarks/balance_substeps.json`."
-            "\n\n```bash\npython experiments/balance_substeps.py --substeps 1,2,4,8,16\n```")
+            "\n\n```bash\npython experiments/studies/balance_substeps.py --substeps 1,2,4,8,16\n```")
 
 
 def reach_obstacles_steps(root: Path) -> str:
@@ -221,7 +224,7 @@ def reach_obstacles_steps(root: Path) -> str:
                    "deepest penetration", "the reference's"], rows)
             + f"\n\nAgainst {d['reference_substeps']} steps, a batch of {d['batch']} episodes of random actions. "
             "Data: `benchmarks/reach_obstacles_steps.json`.\n\n```bash\n"
-            "python experiments/reach_obstacles_steps.py --substeps 8 16 --batch 16    # ~15 min\n```")
+            "python experiments/studies/reach_obstacles_steps.py --substeps 8 16 --batch 16    # ~15 min\n```")
 
 
 def curvature_substeps(root: Path) -> str:
@@ -231,7 +234,7 @@ def curvature_substeps(root: Path) -> str:
     return (table(["dtype", "steps per 0.1 s", "tip error median / p95 / max (mm)",
                    f"env steps/s, batch {d['batch']}"], rows)
             + f"\n\nAgainst {d['reference']}. Data: `benchmarks/curvature_substeps.json`."
-            "\n\n```bash\npython experiments/curvature_substeps.py\n```")
+            "\n\n```bash\npython experiments/studies/curvature_substeps.py\n```")
 
 
 def curvature_arm_basis(root: Path) -> str:
@@ -241,7 +244,8 @@ def curvature_arm_basis(root: Path) -> str:
             for k, m in d["models"].items()]
     return (table(["model", "DoFs", "tip error median / max (mm)", "tangent error median / max (deg)"], rows)
             + f"\n\nAgainst the {d['reference']}, {d['n_samples']} samples ({d['actions']}). "
-            "Data: `benchmarks/curvature_arm_basis.json`.\n\n```bash\npython experiments/curvature_arm_basis.py\n```")
+            "Data: `benchmarks/curvature_arm_basis.json`.\n\n"
+            "```bash\npython experiments/studies/curvature_arm_basis.py\n```")
 
 
 def throw3d_convergence(root: Path) -> str:
@@ -254,7 +258,7 @@ def throw3d_convergence(root: Path) -> str:
     return (table(["model", "against", "landing difference max / p95 / median (cm)"], rows)
             + f"\n\nLanding points of {d['n_actions']} random actions. The richest arm: {rich}. "
             "Data: `benchmarks/throw3d_convergence.json`.\n\n"
-            "```bash\npython experiments/throw3d_convergence.py    # ~15 min\n```")
+            "```bash\npython experiments/studies/throw3d_convergence.py    # ~15 min\n```")
 
 
 def muscle_workspace(root: Path) -> str:
@@ -272,7 +276,7 @@ def muscle_workspace(root: Path) -> str:
     return (table(["actuation", "box within 5 cm", "within 10 cm",
                    "lowest tip at 0.5 / 0.6 / 0.7 / 0.8 m from the axis", "furthest from the axis"], rows)
             + f"\n\n{d['samples']} held actions per actuation, {d['box_points']} points of the target box. "
-            "Data: `benchmarks/muscle_workspace.json`.\n\n```bash\npython experiments/muscle_workspace.py\n```")
+            "Data: `benchmarks/muscle_workspace.json`.\n\n```bash\npython experiments/studies/muscle_workspace.py\n```")
 
 
 def env_throughput(root: Path) -> str:
@@ -282,7 +286,8 @@ def env_throughput(root: Path) -> str:
     return (table(["task", f"env steps/s, batch {d[0]['batch']}", "first call (compile)", "load average"], rows)
             + "\n\n`jit(vmap(step))` with auto-reset and random actions, float64. "
             "Data: `benchmarks/env_throughput.json`."
-            "\n\n```bash\npython experiments/bench_env.py --task reach_pose --batch 1024   # and the other tasks\n```")
+            "\n\n```bash\npython experiments/benchmarks/bench_env.py --task reach_pose --batch 1024"
+            "   # and the other tasks\n```")
 
 
 def sim_throughput(root: Path) -> str:
@@ -294,15 +299,17 @@ def sim_throughput(root: Path) -> str:
                          num(r["sim_seconds_per_wall_second"], 0), f"{1000 * c['release_error_m']:.2f} mm"])
     return (table(["integration", "dtype", "batch", "throws/s", "simulated s per wall s", "release error"], rows)
             + "\n\nBasketball swings to release, batched with `vmap`. Data: `benchmarks/sim.json`."
-            "\n\n```bash\npython experiments/bench_sim.py --json benchmarks/sim.json\n```")
+            "\n\n```bash\npython experiments/benchmarks/bench_sim.py --json benchmarks/sim.json\n```")
 
 
-CONTACT_COST_RUNS = """python experiments/bench_contact_cost.py --batches 1024 --layouts none "0 obstacles" sphere \\
+CONTACT_COST_RUNS = """python experiments/benchmarks/bench_contact_cost.py --batches 1024 \\
+    --layouts none "0 obstacles" sphere \\
     "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, all pairs" "48 capsules, all pairs" \\
     --check-layouts none sphere "12 capsules" "48 capsules" "48 capsules, all pairs" --json benchmarks/contact_cost.json
-python experiments/bench_contact_cost.py --append --batches 1 64 --layouts none sphere "12 capsules" "48 capsules" \\
+python experiments/benchmarks/bench_contact_cost.py --append --batches 1 64 \\
+    --layouts none sphere "12 capsules" "48 capsules" \\
     --check-layouts --rounds 7 --json benchmarks/contact_cost.json
-python experiments/bench_contact_cost.py --figure figures/contact_cost.png
+python experiments/benchmarks/bench_contact_cost.py --figure figures/contact_cost.png
 """
 
 
@@ -345,17 +352,17 @@ def contact_swing(root: Path) -> str:
     return (table(["layout", "throws/s", "slowdown", "compile", "deepest penetration"], rows)
             + f"\n\nThe paper's swing, `{d['integrator']}`, {d['n_steps']} steps per throw, batch "
             f"{d['rows'][0]['batch']}; {d['load_average_before']}. Data: `benchmarks/contact.json`."
-            "\n\n```bash\npython experiments/bench_contact.py --json benchmarks/contact.json\n```")
+            "\n\n```bash\npython experiments/benchmarks/bench_contact.py --json benchmarks/contact.json\n```")
 
 
 def benchmark_task_runs(root: Path) -> str:
     """Every kept training run of the four benchmark tasks (``benchmarks/curvature_ppo_study/``)."""
-    sys.path.insert(0, str(root / "experiments"))
+    sys.path.insert(0, str(root / "experiments" / "studies"))
     import curvature_ppo_study
 
     return (curvature_ppo_study.table(root / "benchmarks" / "curvature_ppo_study")
             + "\n\nData: `benchmarks/curvature_ppo_study/*.json`, one file per run, each with its command."
-            "\n\n```bash\npython experiments/curvature_ppo_study.py --table\n```")
+            "\n\n```bash\npython experiments/studies/curvature_ppo_study.py --table\n```")
 
 
 def mpc_reference(root: Path) -> str:
@@ -484,9 +491,10 @@ def time_to_quality(root: Path) -> str:
             "which each level is first reached on the 1000 held-out targets. "
             "Data: `benchmarks/time_to_quality*.json`."
             "\n\n```bash\n"
-            "python experiments/time_to_quality.py --json benchmarks/time_to_quality.json            # seed 0\n"
-            "python experiments/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1   # seeds 1-4\n"
-            "python experiments/time_to_quality.py seed=0 shared_hidden=128,32,16    # the paper's trunk\n```")
+            "python experiments/studies/time_to_quality.py --json benchmarks/time_to_quality.json  # seed 0\n"
+            "python experiments/studies/time_to_quality.py --json benchmarks/time_to_quality_seed1.json seed=1\n"
+            "    # seeds 1-4\n"
+            "python experiments/studies/time_to_quality.py seed=0 shared_hidden=128,32,16    # the paper's trunk\n```")
 
 
 def tendon_arm(root: Path) -> str:
@@ -504,11 +512,12 @@ def tendon_arm(root: Path) -> str:
             f"{1000 * st['equilibrium']['solve_s']:.0f} ms, `inverse_statics` in "
             f"{st['inverse_statics']['compile_s']:.0f} s and {1000 * st['inverse_statics']['solve_s']:.0f} ms. "
             "Data: `benchmarks/tendon_arm.json`.\n\n"
-            "```bash\npython experiments/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
+            "```bash\npython experiments/benchmarks/bench_tendon_arm.py --json benchmarks/tendon_arm.json\n```")
 
 
 def compile_time(root: Path) -> str:
-    """``experiments/bench_compile.py``'s JSON: compile and step time per model and Gauss points, each tree."""
+    """``experiments/benchmarks/bench_compile.py``'s JSON: compile and step time per model and Gauss points,
+    each tree."""
     d = load(root, "compile_time.json")
     trees = list(d["trees"])
     by = {(r["model"], r["n_gauss"], r["tree"]): r for r in d["rows"]}
@@ -534,11 +543,11 @@ def compile_time(root: Path) -> str:
             "(on a loaded machine the least disturbed); "
             f"each model and tree in its own process, the trees interleaved; 1-minute load average "
             f"{min(loads):.1f}-{max(loads):.1f} on {d['cpu_count']} cores. Data: `benchmarks/compile_time.json`."
-            "\n\n```bash\n" + d.get("command", "python experiments/bench_compile.py") + "\n```")
+            "\n\n```bash\n" + d.get("command", "python experiments/benchmarks/bench_compile.py") + "\n```")
 
 
 def reachability_table(d: dict, policy) -> str:
-    """``experiments/tendon_reachability.py``'s JSON as a table: each row at the largest action sample,
+    """``experiments/studies/tendon_reachability.py``'s JSON as a table: each row at the largest action sample,
     how far its shares moved over the last doubling, and ``policy(task)``, the committed policy's result."""
     what = {"box": "the published box (the policy's)", "reachable": "the reachable part (the default now)",
             "table": "the held-out poses", "reset": "the task's own draws"}
@@ -565,10 +574,11 @@ def tendon_reachability(root: Path) -> str:
 
 STUDIES = {
     "track3d_basis": track3d_basis,
-    "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/track3d_substeps.py "
+    "track3d_substeps": lambda r: substeps(r, "track3d_substeps", "python experiments/studies/track3d_substeps.py "
                                           "--substeps 2,4,8,16 --episodes 32"),
     "track3d_muscle_substeps": lambda r: substeps(
-        r, "track3d_muscle_substeps", "python experiments/track3d_substeps.py --task track3d_muscle --substeps 8 "
+        r, "track3d_muscle_substeps", "python experiments/studies/track3d_substeps.py --task track3d_muscle "
+        "--substeps 8 "
         "--episodes 16 --batch 64 --json benchmarks/track3d_muscle_substeps.json"),
     "balance_substeps": balance_substeps,
     "reach_obstacles_steps": reach_obstacles_steps,

@@ -44,11 +44,14 @@ _warn_if_backend_started()
 # throughput (docs/physics.md, "Precision").
 jax.config.update("jax_enable_x64", True)
 
-from gvsjax.contact import Box, Capsule, Contact, ContactSite, Penalty, Plane, Sphere  # noqa: E402
-from gvsjax.curvature_arm import CURVATURE_ARM, curvature_arm  # noqa: E402
-from gvsjax.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
-from gvsjax.identify import Fit, fit_parameters  # noqa: E402
-from gvsjax.kinematics import (  # noqa: E402
+# two modules reached as namespaces: gv.contact.sites(robot), gv.dynamics.full_matrix(...)
+from gvsjax.core import contact as contact  # noqa: E402
+from gvsjax.core import dynamics as dynamics  # noqa: E402
+from gvsjax.core.contact import Box, Capsule, Contact, ContactSite, Penalty, Plane, Sphere  # noqa: E402
+from gvsjax.core.curvature_arm import CURVATURE_ARM, curvature_arm  # noqa: E402
+from gvsjax.core.dynamics import energy, mass_and_forces, stiffness_and_damping  # noqa: E402
+from gvsjax.core.identify import Fit, fit_parameters  # noqa: E402
+from gvsjax.core.kinematics import (  # noqa: E402
     backbone,
     end_row,
     frames,
@@ -58,7 +61,7 @@ from gvsjax.kinematics import (  # noqa: E402
     tip_frame,
     tip_state,
 )
-from gvsjax.model import (  # noqa: E402
+from gvsjax.core.model import (  # noqa: E402
     Joint,
     Material,
     PointLoad,
@@ -74,8 +77,8 @@ from gvsjax.model import (  # noqa: E402
     TendonPath,
     axis_rotation,
 )
-from gvsjax.muscles import control_points, moment_map  # noqa: E402
-from gvsjax.robots import (  # noqa: E402
+from gvsjax.core.muscles import control_points, moment_map  # noqa: E402
+from gvsjax.core.robots import (  # noqa: E402
     PAPER_ARM,
     PAPER_ARM_3D,
     SOFT_ARM,
@@ -86,10 +89,10 @@ from gvsjax.robots import (  # noqa: E402
     soft_arm,
     tendon_arm,
 )
-from gvsjax.simulation import simulate  # noqa: E402
-from gvsjax.stability import stable_step_estimate  # noqa: E402
-from gvsjax.statics import equilibrium, inverse_statics  # noqa: E402
-from gvsjax.trajectory import Trajectory  # noqa: E402
+from gvsjax.core.simulation import simulate  # noqa: E402
+from gvsjax.core.stability import stable_step_estimate  # noqa: E402
+from gvsjax.core.statics import equilibrium, inverse_statics  # noqa: E402
+from gvsjax.core.trajectory import Trajectory  # noqa: E402
 
 __all__ = [
     "Joint", "Material", "PointLoad", "PointMass", "PointWrench", "RestStrainSegments", "RigidLink", "Robot",

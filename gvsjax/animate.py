@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import keyvalue
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.tasks import DEFAULT_TASK, make, registered
+from gvsjax.utils import keyvalue
 
 USAGE = __doc__.strip()
 

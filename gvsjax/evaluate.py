@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import keyvalue, plots
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.tasks import EvalResult
+from gvsjax.utils import keyvalue, plots
 
 USAGE = __doc__.strip()
 KEYS: dict[str, Any] = {"task": "", "checkpoint": "", "n_targets": -1, "seed": -1, "out": "", "controller": "",

@@ -34,7 +34,7 @@ of the vector env seeded with s follows exactly the stream of a single env
 seeded with s + i (Gymnasium's convention), so both give the same episodes.
 
 Devices. With several JAX devices the vector env splits its batch over them
-(``gvsjax.sharding``; as many devices as divide ``num_envs``).
+(``gvsjax.utils.sharding``; as many devices as divide ``num_envs``).
 
 Compilation. The jitted reset/step (and their vmapped batch versions) are
 cached per task at module level and take the params as an argument: making
@@ -54,8 +54,8 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import sharding
 from gvsjax.tasks import DEFAULT_TASK, Environment, make, randomized, registered
+from gvsjax.utils import sharding
 
 
 def gym_id(task: str) -> str:
@@ -136,7 +136,7 @@ def _vector_fns(env, num_envs: int) -> tuple[Callable, Callable]:
     Each sub-env consumes its key stream exactly like a single env whose user
     calls ``reset()`` after every episode end: one key for the step, then one
     for the reset where the episode ended. With several devices the batch is
-    split over them (``gvsjax.sharding``).
+    split over them (``gvsjax.utils.sharding``).
     """
     mesh = sharding.mesh_for(num_envs)
     tag = ("vector", None if mesh is None else mesh.size)

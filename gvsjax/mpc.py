@@ -27,8 +27,8 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from gvsjax.core.validation import require
 from gvsjax.tasks.base import Environment, PyTree
-from gvsjax.validation import require
 
 PLAN_SEED = 7  # the planner's own keys: it never sees the episode's random draws
 

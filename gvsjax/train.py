@@ -47,7 +47,7 @@ import jax
 import numpy as np
 
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
-from gvsjax import distributed, keyvalue, sac, sharding
+from gvsjax import sac
 from gvsjax.ppo import (
     FIELD_DOCS,
     PRESETS,
@@ -62,9 +62,10 @@ from gvsjax.ppo import (
 )
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.ppo.config import field_parsers
-from gvsjax.runlog import MetricsLog, non_finite, rows_of
 from gvsjax.sac import config as sac_config
 from gvsjax.tasks import DEFAULT_TASK, Environment, make, randomized, registered
+from gvsjax.utils import distributed, keyvalue, sharding
+from gvsjax.utils.runlog import MetricsLog, non_finite, rows_of
 
 RUN_DOCS: dict[str, tuple[Any, str]] = {
     "task": (DEFAULT_TASK, "task to train (one of the registered tasks, see below)"),

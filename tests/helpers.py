@@ -58,13 +58,13 @@ def raises_naming(name, fn, /, *args, exc=ValueError, **kwargs):
     return str(info.value)
 
 
-# modules that bind ``gvsjax.plots.save`` at import (``from gvsjax.plots import save``)
-_SAVERS = ("gvsjax.plots", "gvsjax.tasks.basketball.figures", "gvsjax.tasks.pickplace.figures",
+# modules that bind ``gvsjax.utils.plots.save`` at import (``from gvsjax.utils.plots import save``)
+_SAVERS = ("gvsjax.utils.plots", "gvsjax.tasks.basketball.figures", "gvsjax.tasks.pickplace.figures",
            "gvsjax.tasks.throw3d.figures")
 
 
 def capture_figures(monkeypatch) -> dict[str, list[dict]]:
-    """Record every figure saved through ``gvsjax.plots.save`` (the files are still written).
+    """Record every figure saved through ``gvsjax.utils.plots.save`` (the files are still written).
 
     Returns ``{file name: [line, ...]}``, filled as figures are saved; each line is
     ``{"label", "x", "y", "axes"}`` (x, y float arrays; axes: the index of its axes). The
@@ -76,7 +76,7 @@ def capture_figures(monkeypatch) -> dict[str, list[dict]]:
     from matplotlib.collections import PathCollection
     from matplotlib.container import BarContainer
 
-    from gvsjax import plots
+    from gvsjax.utils import plots
 
     real = plots.save
     captured: dict[str, list[dict]] = {}

@@ -1,4 +1,4 @@
-"""Rest-strain inputs (active strain, ``gvsjax.active_strain``) against closed forms: a constant rest
+"""Rest-strain inputs (active strain, ``gvsjax.core.active_strain``) against closed forms: a constant rest
 curvature bends an unloaded rod into an arc of exactly that curvature, piecewise rest curvatures into
 the matching chain of arcs, a rest twist turns the tip by the integrated twist; the input under jit,
 vmap and grad and in a controller; the checks at the boundary; and ``point_states``."""
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import gvsjax as gv
-from gvsjax import active_strain
-from gvsjax.curvature_arm import SEGMENTS, node_sites, segment_lengths
-from gvsjax.kinematics import point_states
+from gvsjax.core import active_strain
+from gvsjax.core.curvature_arm import SEGMENTS, node_sites, segment_lengths
+from gvsjax.core.kinematics import point_states
 
 
 def one_link(components=("bend_y", "bend_z"), knots=(0.0, 1.0), **arm):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from helpers import raises_naming
 
-from gvsjax import dynamics, lie
+from gvsjax.core import dynamics, lie
 
 UP = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # the first link's x along world +y
 Z, Y = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from gvsjax import contact, penetration
+from gvsjax.core import contact, penetration
 from helpers import raises_naming
 
 G = 9.81

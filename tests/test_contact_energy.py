@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import contact, dynamics
-from gvsjax.kinematics import forward, rows
+from gvsjax.core import contact, dynamics
+from gvsjax.core.kinematics import forward, rows
 
 
 def contact_force(robot, q, qd=None):

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import contact, obstacles, stacked_contact
+from gvsjax.core import contact, obstacles, stacked_contact
 
 
 def pieces(n_c=40, seed=0):

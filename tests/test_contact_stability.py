@@ -12,8 +12,8 @@ import pytest
 from helpers import raises_naming
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
-from gvsjax import integrators, lie
-from gvsjax.stability import amplification, stable_step_estimate
+from gvsjax.core import integrators, lie
+from gvsjax.core.stability import amplification, stable_step_estimate
 
 
 class LinearSystem:

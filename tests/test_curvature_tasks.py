@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import gvsjax  # noqa: F401
-from gvsjax.curvature_arm import SEGMENT_SHARE, segment_lengths
+from gvsjax.core.curvature_arm import SEGMENT_SHARE, segment_lengths
 from gvsjax.tasks import make
 from gvsjax.tasks.curvature import control, rewards
 

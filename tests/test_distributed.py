@@ -1,4 +1,4 @@
-"""Several processes (gvsjax.distributed): two processes on this machine, one CPU device each,
+"""Several processes (gvsjax.utils.distributed): two processes on this machine, one CPU device each,
 train basketball with the env batch split over them, write one checkpoint (gathered, by process
 0), resume from it on both, and end where the same training on one process ends.
 

@@ -1,4 +1,4 @@
-"""Equations of motion (gvsjax.dynamics): the recursion against the Lagrangian by autodiff,
+"""Equations of motion (gvsjax.core.dynamics): the recursion against the Lagrangian by autodiff,
 the mass matrix at rest against its closed form, energy conservation of a rigid-soft 3D
 chain on free joints, and 3D statics (lateral-load symmetry, planar bending, pure torsion)."""
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers import rigid_soft_chain
 
-from gvsjax import dynamics, lie
+from gvsjax.core import dynamics, lie
 
 
 def _mf_arrays(robot, q, qd):

@@ -1,4 +1,4 @@
-"""The PyElastica twins of the benchmark tasks (experiments/elastica_twins.py): the curvature mapping
+"""The PyElastica twins of the benchmark tasks (experiments/transfer/elastica_twins.py): the curvature mapping
 against the closed-form shape of the discrete rod, and the observation against gvsjax's."""
 
 import gvsjax  # noqa: F401, I001  (first: it configures JAX)
@@ -9,11 +9,11 @@ import jax
 import numpy as np
 import pytest
 
-from gvsjax.curvature_arm import SEGMENT_SHARE
+from gvsjax.core.curvature_arm import SEGMENT_SHARE
 from gvsjax.tasks import make
 
 pytest.importorskip("elastica", reason="PyElastica is in the bench extra (pip install -e '.[bench]')")
-sys.path.insert(0, str(Path(__file__).parents[1] / "experiments"))
+sys.path.insert(0, str(Path(__file__).parents[1] / "experiments" / "transfer"))
 et = pytest.importorskip("elastica_twins")
 
 

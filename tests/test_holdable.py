@@ -12,7 +12,7 @@ from gvsjax.tasks import arm3d, holdable
 
 
 def _experiment():
-    path = Path(__file__).parents[1] / "experiments" / "tendon_reachability.py"
+    path = Path(__file__).parents[1] / "experiments" / "studies" / "tendon_reachability.py"
     spec = importlib.util.spec_from_file_location("tendon_reachability", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

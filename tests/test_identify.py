@@ -1,8 +1,8 @@
-"""Parameter identification (gvsjax.identify): the solver on a closed-form model; E and eta of
+"""Parameter identification (gvsjax.core.identify): the solver on a closed-form model; E and eta of
 the paper's arm recovered from simulated tip trajectories of another discretisation and the
 Jacobian against finite differences (extended tier); bad input. One bending mode:
 differentiating a simulation is what takes long to compile, and the fit is the same for any
-basis (experiments/identify_and_correct.py fits the task's 2-mode and a converged Legendre arm)."""
+basis (experiments/transfer/identify_and_correct.py fits the task's 2-mode and a converged Legendre arm)."""
 
 import jax
 import jax.numpy as jnp
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import gvsjax as gv
-from gvsjax.identify import fit_parameters, relative_errors
+from gvsjax.core.identify import fit_parameters, relative_errors
 
 E0, ETA0 = gv.PAPER_ARM["youngs_modulus"], gv.PAPER_ARM["damping"]
 SWINGS = jnp.array([0.6, 0.9])  # s: theta = 210 deg (t / T)^2 up to 0.8 T, fast enough to excite bending

@@ -1,4 +1,4 @@
-"""The integrators (gvsjax.integrators): each converges at its documented order on the fast throw;
+"""The integrators (gvsjax.core.integrators): each converges at its documented order on the fast throw;
 the ARS(4,4,3) tableau meets the order conditions and stays accurate beyond RK4's step limit."""
 
 import gvsjax as gv  # noqa: I001  (first: it configures JAX)
@@ -10,8 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import integrators
-from gvsjax.system import FreeDynamics
+from gvsjax.core import integrators
+from gvsjax.core.system import FreeDynamics
 
 THETA_F, T = np.deg2rad(210.0), 0.5
 ARM = gv.paper_arm(tip_force=5.886)

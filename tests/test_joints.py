@@ -8,8 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import dynamics
-from gvsjax.system import FreeDynamics
+from gvsjax.core import dynamics
+from gvsjax.core.system import FreeDynamics
 
 G = 9.81
 

@@ -1,4 +1,4 @@
-"""Kinematics (gvsjax.kinematics): the frame conventions, convergence of the tip with
+"""Kinematics (gvsjax.core.kinematics): the frame conventions, convergence of the tip with
 quadrature points, Jacobians against autodiff and finite differences, finite gradients at
 the straight configuration, and coordinate vectors of the wrong length named."""
 
@@ -51,8 +51,8 @@ def test_the_pass_without_jacobians_gives_the_same_poses_and_twists(make):
     """``forward(jacobian=False)`` (tip_state, frames, energy and the contact report use it)
     leaves every J zero and every pose and twist as the full pass has them (to rounding: the
     scanned pass is one compiled loop, whose fusions differ when it carries no Jacobian)."""
-    from gvsjax import lie
-    from gvsjax.kinematics import forward, rows
+    from gvsjax.core import lie
+    from gvsjax.core.kinematics import forward, rows
 
     robot = make()
     rng = np.random.default_rng(2)

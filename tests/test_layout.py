@@ -8,23 +8,25 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "gvsjax"
 
-# Each module's layer; a module may import only its own layer or lower ones.
-# Layer 0 holds utilities that import nothing from gvsjax.
+# Each module's layer; a module may import only its own layer or lower ones. The folders
+# follow the layers: utils/ (0), core/ (1-6, the simulator), tasks/, the controllers, and the
+# command line and Gymnasium at the top of the package. The subpackages' own __init__ files
+# import nothing, so they sit at layer 0.
+C = "gvsjax.core."
+EXACT = {"gvsjax", "gvsjax.core"}
 LAYERS = {
-    "utilities": (0, ["gvsjax.keyvalue", "gvsjax.plots", "gvsjax.sharding", "gvsjax.distributed"]),
-    "lie": (1, ["gvsjax.lie", "gvsjax.linalg"]),
-    "model": (2, ["gvsjax.model", "gvsjax.obstacles", "gvsjax.robots", "gvsjax.curvature_arm", "gvsjax.validation",
-                  "gvsjax.loads"]),
-    "kinematics": (3, ["gvsjax.magnus", "gvsjax.scan", "gvsjax.kinematics"]),
-    "dynamics": (4, ["gvsjax.muscles", "gvsjax.active_strain", "gvsjax.tendons", "gvsjax.penetration",
-                     "gvsjax.stacked_contact", "gvsjax.contact_samples",
-                     "gvsjax.contact", "gvsjax.dynamics"]),
-    "integrators": (5, ["gvsjax.integrators"]),
-    "simulation": (6, ["gvsjax", "gvsjax.trajectory", "gvsjax.system", "gvsjax.stability", "gvsjax.inputs",
-                       "gvsjax.simulation", "gvsjax.statics", "gvsjax.identify"]),
+    "utilities": (0, ["gvsjax.utils", "gvsjax.core"]),
+    "lie": (1, [C + "lie", C + "linalg"]),
+    "model": (2, [C + m for m in ("model", "obstacles", "robots", "curvature_arm", "validation", "loads")]),
+    "kinematics": (3, [C + m for m in ("magnus", "scan", "kinematics")]),
+    "dynamics": (4, [C + m for m in ("muscles", "active_strain", "tendons", "penetration", "stacked_contact",
+                                     "contact_samples", "contact", "dynamics")]),
+    "integrators": (5, [C + "integrators"]),
+    "simulation": (6, ["gvsjax"] + [C + m for m in ("trajectory", "system", "stability", "inputs", "simulation",
+                                                     "statics", "identify")]),
     "tasks": (7, ["gvsjax.tasks"]),
     "controllers": (8, ["gvsjax.ppo", "gvsjax.sac", "gvsjax.mpc"]),
-    "command line": (9, ["gvsjax.train", "gvsjax.evaluate", "gvsjax.animate", "gvsjax.runlog"]),
+    "command line": (9, ["gvsjax.train", "gvsjax.evaluate", "gvsjax.animate"]),
     "gym": (10, ["gvsjax.gym"]),
 }
 
@@ -76,8 +78,8 @@ def layer_of(module: str, layers=LAYERS) -> int:
     best, best_len = None, -1
     for level, prefixes in layers.values():
         for p in prefixes:
-            # exact for "gvsjax" itself; prefix for packages (gvsjax.tasks.*)
-            if (module == p or (p != "gvsjax" and module.startswith(p + "."))) and len(p) > best_len:
+            # exact for the packages whose modules have layers of their own; prefix for the rest
+            if (module == p or (p not in EXACT and module.startswith(p + "."))) and len(p) > best_len:
                 best, best_len = level, len(p)
     if best is None:
         raise AssertionError(f"module {module} has no layer in LAYERS: add it")
@@ -142,13 +144,15 @@ def test_the_checks_catch_what_they_should(tmp_path):
     """An upward import and a cycle planted in a small tree are both found."""
     pkg = tmp_path / "gvsjax"
     (pkg / "tasks").mkdir(parents=True)
+    (pkg / "core").mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "lie.py").write_text("from gvsjax.tasks import env\n")  # upward: lie -> tasks
+    (pkg / "core" / "__init__.py").write_text("")
+    (pkg / "core" / "lie.py").write_text("from gvsjax.tasks import env\n")  # upward: lie -> tasks
     (pkg / "tasks" / "__init__.py").write_text("")
     (pkg / "tasks" / "env.py").write_text("import gvsjax.tasks.other\n")
     (pkg / "tasks" / "other.py").write_text("def f():\n    from gvsjax.tasks import env\n")  # cycle
     edges = import_edges(pkg)
-    assert upward(edges) == [("gvsjax.lie", "gvsjax.tasks"), ("gvsjax.lie", "gvsjax.tasks.env")]
+    assert upward(edges) == [("gvsjax.core.lie", "gvsjax.tasks"), ("gvsjax.core.lie", "gvsjax.tasks.env")]
     assert cycles(edges) == [["gvsjax.tasks.env", "gvsjax.tasks.other"]]
 
 
@@ -169,8 +173,8 @@ def test_generic_modules_name_no_task():
     """The command line, Gymnasium, PPO and shared figures reach tasks only through the registry."""
     from gvsjax.tasks import registered
 
-    generic = ["train.py", "evaluate.py", "animate.py", "runlog.py", "gym.py", "plots.py", "keyvalue.py",
-               "tasks/base.py", "tasks/randomized.py", "mpc.py"]
+    generic = ["train.py", "evaluate.py", "animate.py", "gym.py", "mpc.py", "utils/runlog.py", "utils/plots.py",
+               "utils/keyvalue.py", "tasks/base.py", "tasks/randomized.py"]
     generic += [str(p.relative_to(ROOT)) for d in ("ppo", "sac") for p in (ROOT / d).glob("*.py")]
     for rel in generic:
         for text in _string_constants(ROOT / rel):

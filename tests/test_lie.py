@@ -1,4 +1,4 @@
-"""The Lie-group maths (gvsjax.lie): the exponential's coefficient functions of u = theta^2
+"""The Lie-group maths (gvsjax.core.lie): the exponential's coefficient functions of u = theta^2
 (sinc, a, b, f3, f4), values and rates, in float64 and float32, against an independent series."""
 
 import gvsjax  # noqa: F401, I001  (first: it configures JAX)
@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import lie
+from gvsjax.core import lie
 
 
 def _series(name: str, n_terms: int = 20) -> list[float]:

@@ -1,4 +1,4 @@
-"""The SPD solves of ``gvsjax.linalg`` against NumPy's dense solver, in both layouts,
+"""The SPD solves of ``gvsjax.core.linalg`` against NumPy's dense solver, in both layouts,
 under jit, vmap and grad, and inside the dynamics of a robot large enough to use the
 stacked one."""
 
@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax import dynamics, lie, linalg
+from gvsjax.core import dynamics, lie, linalg
 
 
 def _spd(n: int, seed: int, cond: float = 1e4) -> np.ndarray:

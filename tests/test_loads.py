@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from gvsjax import dynamics, loads
+from gvsjax.core import dynamics, loads
 
 MASS, COM, I_ZZ, LENGTH = 1.0, 0.4, 0.02, 0.8
 J_JOINT = I_ZZ + MASS * COM**2

@@ -1,4 +1,4 @@
-"""Robot descriptions (gvsjax.model, gvsjax.robots): ``paper_arm``, ``rod_3d`` and ``tendon_arm`` reject bad
+"""Robot descriptions (gvsjax.core.model, gvsjax.core.robots): ``paper_arm``, ``rod_3d`` and ``tendon_arm`` reject bad
 parameters with a ValueError naming the parameter, before anything is traced or compiled; the
 two strain bases describe the same arm."""
 
@@ -115,7 +115,7 @@ def test_tendon_arm_numbers_trace_under_jit_vmap_and_grad():
     import jax
     import jax.numpy as jnp
 
-    from gvsjax import dynamics
+    from gvsjax.core import dynamics
 
     def trace_K(E):
         arm = gv.tendon_arm(youngs_modulus=E)

@@ -1,4 +1,4 @@
-"""Distributed internal moments ("muscle torques", ``gvsjax.muscles``) and the ``strain_force``
+"""Distributed internal moments ("muscle torques", ``gvsjax.core.muscles``) and the ``strain_force``
 input of ``simulate`` and ``equilibrium``, against closed forms: a constant moment gives a
 constant strain (an arc, a helix: the exponential of one twist), a linear bending moment
 the curvature and deflection of beam theory; the map B against the virtual work by autodiff.
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from gvsjax import muscles
-from gvsjax.magnus import rest_strain, scaled_columns, strain
-from gvsjax.system import FreeDynamics
+from gvsjax.core import muscles
+from gvsjax.core.magnus import rest_strain, scaled_columns, strain
+from gvsjax.core.system import FreeDynamics
 
 E, NU, R, L = 5e6, 0.5, 0.05, 1.0
 EI = E * np.pi * R**4 / 4

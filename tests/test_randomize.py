@@ -16,8 +16,8 @@ from helpers import no_compile, raises_naming
 
 import gvsjax as gv  # noqa: F401  (before JAX starts its backend)
 from gvsjax import train
+from gvsjax.core.stability import linear_matrices
 from gvsjax.ppo import checkpoint as ckpt
-from gvsjax.stability import linear_matrices
 from gvsjax.tasks import Environment, auto_reset_step, base, make, register
 from gvsjax.tasks.basketball import BALL_WEIGHT
 from gvsjax.tasks.randomized import Randomized, nominal, parse, text_of, wrap

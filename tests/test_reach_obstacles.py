@@ -307,7 +307,7 @@ def test_residual_actions_correct_the_ramp_and_the_last_step_weighs_more(env, ba
 
 
 def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
-    """``experiments/train_variant.py``: the variant's default params carry the replacements and
+    """``experiments/studies/train_variant.py``: the variant's default params carry the replacements and
     nothing else changes; an unknown field is refused, naming the fields."""
     import importlib.util
     from pathlib import Path
@@ -315,7 +315,7 @@ def test_train_variant_registers_the_task_with_its_params_replaced(monkeypatch):
     from gvsjax.tasks import base
 
     monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))  # the registration undone after the test
-    path = Path(__file__).parents[1] / "experiments" / "train_variant.py"
+    path = Path(__file__).parents[1] / "experiments" / "studies" / "train_variant.py"
     spec = importlib.util.spec_from_file_location("train_variant", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from helpers import raises_naming
 
-from gvsjax import dynamics, kinematics, lie, linalg, scan
-from gvsjax.validation import check_robot
+from gvsjax.core import dynamics, kinematics, lie, linalg, scan
+from gvsjax.core.validation import check_robot
 
 Z, Y = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from gvsjax import dynamics
+from gvsjax.core import dynamics
 
 E, NU = 5e7, 0.5
 G_SHEAR = E / (2 * (1 + NU))

@@ -1,4 +1,4 @@
-"""Scale-out (gvsjax.sharding): a run on 2 virtual CPU devices equals the single-device run.
+"""Scale-out (gvsjax.utils.sharding): a run on 2 virtual CPU devices equals the single-device run.
 
 The 2-device run is this file executed as a script in a subprocess with
 ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` (the device count is
@@ -23,7 +23,7 @@ sys.path.insert(0, str(HERE))
 from bandit_env import BanditEnv  # noqa: E402
 
 from gvsjax.ppo import PPOConfig, make_train  # noqa: E402
-from gvsjax.sharding import batched  # noqa: E402
+from gvsjax.utils.sharding import batched  # noqa: E402
 
 CONFIG = PPOConfig(num_envs=16, num_steps=2, num_minibatches=2, update_epochs=2,
                    learning_rate=3e-3, shared_hidden=(16,), total_episodes=16 * 2 * 3,

@@ -1,5 +1,5 @@
-"""The simulation driver (gvsjax.simulation, its argument checks in gvsjax.inputs and the step
-limit of gvsjax.stability): bad arguments raise a ValueError naming them before anything
+"""The simulation driver (gvsjax.core.simulation, its argument checks in gvsjax.core.inputs and the step
+limit of gvsjax.core.stability): bad arguments raise a ValueError naming them before anything
 compiles, a step beyond the stability limit is refused (also inside ``jit``), a rejected call
 adds no compiled program, ``simulate`` works under ``jit``/``vmap``/``grad`` (gradients equal
 central differences), and random physical parameters give finite states and gradients."""
@@ -16,7 +16,7 @@ from helpers import FAST, nan_inf, not_positive, raises_naming
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from gvsjax.integrators import INTEGRATORS
+from gvsjax.core.integrators import INTEGRATORS
 
 bad_count = st.one_of(st.integers(max_value=0), st.floats(allow_nan=True), st.booleans(),
                       st.text(max_size=3), st.none())
@@ -84,7 +84,7 @@ def test_simulate_tendon_force_needs_a_tendon():
 @given(dt=st.sampled_from([0.02, 0.025, 0.05, 0.1, 0.125, 0.2, 0.25, 0.5]))
 def test_simulate_step_beyond_stability_is_rejected_before_the_program_compiles(dt):
     # the estimate itself runs a few eager JAX ops (tiny compilations), the simulation never
-    sim = importlib.import_module("gvsjax.simulation")
+    sim = importlib.import_module("gvsjax.core.simulation")
     programs = sim._run._cache_size()
     with pytest.raises(ValueError, match=rf"dt={dt}.*stability limit"):
         gv.simulate(ARM, 1.0, dt)
@@ -142,7 +142,7 @@ def test_under_jit_the_run_is_traced_into_the_callers_program():
     """Inside a caller's jit (or scan) ``simulate`` traces its run into that program instead of
     calling its own jitted run (which ``vmap`` would trace, then batch in a second pass); eager
     calls and eager ``vmap`` keep the jitted run. Both give the same states."""
-    from gvsjax import simulation
+    from gvsjax.core import simulation
 
     seen = []
 

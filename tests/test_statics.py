@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gvsjax.statics import equilibrium, inverse_statics
+from gvsjax.core.statics import equilibrium, inverse_statics
 
 R = 0.05  # m
 I_AREA = np.pi * R**4 / 4  # second moment of area, m^4

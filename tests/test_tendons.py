@@ -1,4 +1,4 @@
-"""Routed tendons (gvsjax.tendons): the generalized force against independent references.
+"""Routed tendons (gvsjax.core.tendons): the generalized force against independent references.
 
 With no other load, the statics of a cable-driven rod is local: cut the rod and the cable
 at s, and the distal part (rod and cable, anchored at the tip) is held only by the rod's
@@ -17,7 +17,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq, fsolve
 
-from gvsjax import lie, tendons
+from gvsjax.core import lie, tendons
 from helpers import raises_naming
 
 E, NU, RADIUS, LENGTH = 5e6, 0.5, 0.05, 1.0

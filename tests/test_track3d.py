@@ -13,7 +13,7 @@ import gvsjax as gv
 from gvsjax.tasks import arm3d, make
 from gvsjax.tasks import track3d as t3
 
-TRUNCATION_M = 5e-3  # the order-2 basis' tip error on a curvature jump (experiments/track3d_basis.py)
+TRUNCATION_M = 5e-3  # the order-2 basis' tip error on a curvature jump (experiments/studies/track3d_basis.py)
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_a_tendon_bends_the_arm_into_the_closed_form_arc():
 def test_the_half_length_tendons_bend_only_the_lower_half():
     """Weightless, a lower-group tendon: an arc of curvature T d / EI up to X = 1/2 (shrunk by
     1 - T / EA), then a straight upper half along the arc's end tangent. The polynomial basis
-    smooths the curvature's jump at X = 1/2: the convergence study (experiments/track3d_basis.py)
+    smooths the curvature's jump at X = 1/2: the convergence study (experiments/studies/track3d_basis.py)
     puts the order-2 basis within a few millimetres of the reference there."""
     E, r, d, T = 1e7, 0.05, 0.04, 400.0
     robot = gv.soft_arm(gravity=0.0)
@@ -302,7 +302,7 @@ def test_the_tendon_arm_simulates_in_float32():
 def test_learning_curve_of_long_episodes_averages_the_recent_ones(tmp_path, monkeypatch):
     """With 100-step episodes most updates end no episode (reward NaN): the 100-episode moving
     average must span the last rows that ended some, not a hundred rows."""
-    from gvsjax import plots
+    from gvsjax.utils import plots
 
     rows = ["update,episodes,episode_reward,episodes_completed"]
     for u in range(60):

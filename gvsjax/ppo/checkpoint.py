@@ -7,7 +7,7 @@ where ``payload`` is itself msgpack of ``{"train_state": flax to_bytes(state),
 temporary file in the same folder, is fsync'ed, then ``os.replace``d over the
 target, so a crash never leaves a half-written checkpoint under the real name.
 A truncated or altered file raises ``CheckpointError`` naming the file.
-With several processes (``gvsjax.distributed``) ``save`` is collective: the
+With several processes (``gvsjax.utils.distributed``) ``save`` is collective: the
 state is gathered whole, process 0 writes, and every process returns once the
 file is in place; ``load`` then reads the same file on every process.
 
@@ -28,13 +28,14 @@ import jax
 import jax.numpy as jnp
 from flax import serialization
 
-from gvsjax import distributed, sac
+from gvsjax import sac
 from gvsjax.ppo.config import RUN_KEYS, config_from_json
 from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import policy_action
 from gvsjax.ppo.train import init
 from gvsjax.tasks import make
 from gvsjax.tasks.randomized import wrap
+from gvsjax.utils import distributed
 
 FORMAT = "gvsjax-checkpoint-v1"
 

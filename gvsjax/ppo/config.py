@@ -21,7 +21,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from gvsjax import keyvalue
+from gvsjax.utils import keyvalue
 
 _f = keyvalue.field
 

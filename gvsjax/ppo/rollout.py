@@ -2,7 +2,7 @@
 ``num_envs`` auto-resetting environments, its episode metrics, and the policy's action.
 
 With ``antithetic`` env i and i + num_envs/2 share their reset keys and play mirrored
-action noise; with several devices the env axis is split over them (``gvsjax.sharding``).
+action noise; with several devices the env axis is split over them (``gvsjax.utils.sharding``).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import action_log_prob
 from gvsjax.ppo.networks import make_network, obs_size
 from gvsjax.tasks.base import auto_reset_step
+from gvsjax.utils import sharding
 
 PyTree = Any
 

@@ -16,7 +16,7 @@ index, so the phase switch never recompiles.
 Numerics are float32 (observations and rewards are cast), whatever the
 physics uses.
 
-Scale-out (``gvsjax.sharding``): with several JAX devices the ``num_envs``
+Scale-out (``gvsjax.utils.sharding``): with several JAX devices the ``num_envs``
 axis of the env state, observations and rollout is split over a mesh of the
 devices (as many as divide ``num_envs``) and the network is replicated; the
 rollout batch is gathered onto every device before the minibatch shuffle, so
@@ -35,11 +35,11 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from gvsjax import sharding
 from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import Batch, gae, ppo_loss
 from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import TrainState, collect, env_keys, episode_metrics, pair_up, shardings
+from gvsjax.utils import sharding
 
 PyTree = Any
 

@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from gvsjax import keyvalue
+from gvsjax.utils import keyvalue
 
 _f = keyvalue.field
 

@@ -26,9 +26,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.model import Robot, SoftLink
-from gvsjax.muscles import moment_map
-from gvsjax.validation import require
+from gvsjax.core.model import Robot, SoftLink
+from gvsjax.core.muscles import moment_map
+from gvsjax.core.validation import require
 
 ACTUATIONS = ("tendon", "muscle")
 MUSCLE_POINTS = 6  # control points along the arm, as the Elastica soft-arm benchmarks' muscle torques

@@ -20,9 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.model import Robot, SoftLink
-from gvsjax.robots import soft_arm
-from gvsjax.simulation import simulate
+from gvsjax.core.model import Robot, SoftLink
+from gvsjax.core.robots import soft_arm
+from gvsjax.core.simulation import simulate
 from gvsjax.tasks import actuation as act
 
 ANGULAR_SCALE = 3.0  # 1/m: torsion and curvature coefficients are observed / this
@@ -47,12 +47,12 @@ class ArmParams:
     robot: Robot = struct.field(default_factory=soft_arm)
     tension_max: float = 2000.0  # N per tendon: both groups together bend the tip below the tasks' targets
     # N m per control point and direction (muscle actuation): the tendons' static cover of track3d's box;
-    # 80 N m, the whole-arm tendon's 2000 N x 4 cm, covers less (experiments/muscle_workspace.py)
+    # 80 N m, the whole-arm tendon's 2000 N x 4 cm, covers less (experiments/studies/muscle_workspace.py)
     moment_max: float = 90.0
     actuation: str = struct.field(pytree_node=False, default="tendon")  # "tendon" or "muscle"
     control_dt: float = 0.1  # s between actions
     # ars443 steps per control step: 8 keep the tip within 6 mm (95th percentile) of a converged run under
-    # actions held for 1 s, 16 within 1 mm (experiments/track3d_substeps.py)
+    # actions held for 1 s, 16 within 1 mm (experiments/studies/track3d_substeps.py)
     n_substeps: int = struct.field(pytree_node=False, default=8)
     integrator: str = struct.field(pytree_node=False, default="ars443")
     sim_dtype: str = struct.field(pytree_node=False, default="float64")  # simulate's dtype; the env stays float64

@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.model import PointLoad, PointMass, Robot, SoftLink
+from gvsjax.core.model import PointLoad, PointMass, Robot, SoftLink
 
 PyTree = Any
 Policy = Callable[[jax.Array], jax.Array]  # (batch, obs_size) -> (batch, action_size), jittable
@@ -88,7 +88,7 @@ def scale_material(field: str) -> Scale:
     """A ``Scale`` multiplying ``Material.<field>`` of every soft link of every robot in the params.
 
     The section's stiffness, damping and inertia are assembled from the material inside the
-    dynamics (``gvsjax.dynamics.section``) at every call, so scaling the leaf is all it takes.
+    dynamics (``gvsjax.core.dynamics.section``) at every call, so scaling the leaf is all it takes.
     """
 
     def scale(params, factor):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from gvsjax.kinematics import backbone
-from gvsjax.model import Robot
+from gvsjax.core.kinematics import backbone
+from gvsjax.core.model import Robot
 
 LIMITS = ((-0.9, 0.9), (-0.9, 0.9), (-0.3, 1.1))  # m, the drawn volume: the arm's reach about its base
 

@@ -20,10 +20,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.kinematics import tip_frame
-from gvsjax.statics import equilibrium
+from gvsjax.core.kinematics import tip_frame
+from gvsjax.core.statics import equilibrium
+from gvsjax.core.validation import integer
 from gvsjax.tasks import arm3d
-from gvsjax.validation import integer
 
 LOAD_STEPS = 4  # continuation steps of the statics: the largest actions curl the tip below the base
 PIN_PROBABILITIES = (0.0, 0.25, 0.5)  # share of an action's entries set to +-1, one third of the draws each

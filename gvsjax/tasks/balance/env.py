@@ -35,9 +35,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.kinematics import tip_state
-from gvsjax.model import SoftLink
-from gvsjax.simulation import simulate
+from gvsjax.core.kinematics import tip_state
+from gvsjax.core.model import SoftLink
+from gvsjax.core.simulation import simulate
 from gvsjax.tasks.balance import figures
 from gvsjax.tasks.balance.params import BalanceParams
 from gvsjax.tasks.base import (

@@ -7,9 +7,9 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from gvsjax import plots
-from gvsjax.kinematics import backbone
-from gvsjax.model import Robot
+from gvsjax.core.kinematics import backbone
+from gvsjax.core.model import Robot
+from gvsjax.utils import plots
 
 
 def tilt_over_time(tilt: np.ndarray, success: np.ndarray, dt: float, upright_deg: float, path) -> Path:

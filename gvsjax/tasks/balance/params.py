@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from flax import struct
 
-from gvsjax.model import Robot
-from gvsjax.robots import paper_arm
+from gvsjax.core.model import Robot
+from gvsjax.core.robots import paper_arm
 
 
 def torque_arm() -> Robot:
@@ -33,7 +33,7 @@ class BalanceParams:
     speed_scale: float = 2.0  # m/s: reward / (1 + (tip speed / speed_scale)^2)
     # the uprightness's share that is exp(-(tilt / upright_deg)^2), sharp where 1 - tilt / pi is flat
     upright_bonus: float = 0.5
-    # ars443 steps per control step (experiments/balance_substeps.py)
+    # ars443 steps per control step (experiments/studies/balance_substeps.py)
     n_substeps: int = struct.field(pytree_node=False, default=4)
     integrator: str = struct.field(pytree_node=False, default="ars443")
     episode_steps: int = struct.field(pytree_node=False, default=200)  # 10 s

@@ -22,8 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax import plots
-from gvsjax.robots import paper_arm
+from gvsjax.core.robots import paper_arm
 from gvsjax.tasks.ballistics import miss_metrics
 from gvsjax.tasks.base import (
     ROBOT_MATERIAL,
@@ -40,6 +39,7 @@ from gvsjax.tasks.base import (
 from gvsjax.tasks.basketball import figures, throw
 from gvsjax.tasks.basketball.params import BALL_WEIGHT, BasketballParams
 from gvsjax.tasks.basketball.targets import make_params, normalise, sample_target
+from gvsjax.utils import plots
 
 # beyond it (per component, m/s) a throw counts as diverged: ~6x the fastest release
 # of the whole action box (15.8 m/s)

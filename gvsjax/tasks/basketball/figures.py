@@ -17,10 +17,10 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gvsjax.kinematics import backbone  # noqa: E402
-from gvsjax.plots import save, save_gif  # noqa: E402
+from gvsjax.core.kinematics import backbone  # noqa: E402
 from gvsjax.tasks.basketball import throw  # noqa: E402
 from gvsjax.tasks.basketball.params import HOOP, BasketballParams  # noqa: E402
+from gvsjax.utils.plots import save, save_gif  # noqa: E402
 
 # The GIF's swing: 300 RK4 steps, every 5th state drawn (60 frames); its release is
 # within 0.5 mm of the task's 40 ars443 steps.

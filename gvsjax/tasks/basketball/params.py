@@ -26,7 +26,7 @@ class BasketballParams:
     y_floor: float = WINDOW[2]  # m, the flight ends here
     window: tuple = WINDOW  # m, (x_min, x_max, y_min, y_max): targets and obs scaling
     n_steps: int = struct.field(pytree_node=False, default=40)  # integrator steps to release
-    integrator: str = struct.field(pytree_node=False, default="ars443")  # see gvsjax.integrators
+    integrator: str = struct.field(pytree_node=False, default="ars443")  # see gvsjax.core.integrators
     # simulate's dtype: "float32" gives ~2.7x the throws/s of a batch, releases within 0.05 mm of
     # float64's; the flight and the reward stay float64
     sim_dtype: str = struct.field(pytree_node=False, default="float64")

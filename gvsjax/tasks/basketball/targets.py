@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.robots import paper_arm
+from gvsjax.core.robots import paper_arm
 from gvsjax.tasks.base import draw_index
 from gvsjax.tasks.basketball.params import BALL_WEIGHT, BasketballParams
 from gvsjax.tasks.basketball.throw import flight_point, floor_time, physical_to_action, release_state

@@ -17,10 +17,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from gvsjax.simulation import simulate
+from gvsjax.core.simulation import simulate
+from gvsjax.core.trajectory import Trajectory
 from gvsjax.tasks.ballistics import closest_approach, flight_point, floor_time
 from gvsjax.tasks.basketball.params import BasketballParams
-from gvsjax.trajectory import Trajectory
 
 
 def action_to_physical(action: jax.Array, params: BasketballParams) -> tuple[jax.Array, jax.Array]:

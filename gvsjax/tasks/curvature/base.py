@@ -69,7 +69,7 @@ class CurvatureTask(Environment):
     # append the tip-to-target vector to the observation (the benchmark's observation leaves it out)
     relative_obs: ClassVar[bool] = False
     # training simulates in float32 (1.5x the steps/s, the same tip error at 2 substeps:
-    # experiments/curvature_substeps.py); evaluation in float64
+    # experiments/studies/curvature_substeps.py); evaluation in float64
     train_sim_dtype = "float32"
 
     # ------------------------------------------------------------------ hooks

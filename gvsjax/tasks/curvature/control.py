@@ -21,11 +21,11 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.curvature_arm import SEGMENT_SHARE, curvature_arm, node_sites, segment_lengths
-from gvsjax.kinematics import point_states
-from gvsjax.model import Robot
-from gvsjax.simulation import simulate
-from gvsjax.validation import require
+from gvsjax.core.curvature_arm import SEGMENT_SHARE, curvature_arm, node_sites, segment_lengths
+from gvsjax.core.kinematics import point_states
+from gvsjax.core.model import Robot
+from gvsjax.core.simulation import simulate
+from gvsjax.core.validation import require
 
 N_POINTS = 5  # control points
 GAMMA = 0.99  # the benchmark's discount (its SAC's), used for the published returns
@@ -44,7 +44,7 @@ class ArmControl:
     twist_max: float = float(np.pi / 2)  # rad
     control_dt: float = 0.1  # s between actions
     # ars443 steps per control step (stiffness and damping implicit): 2 keep the tip within 0.8 mm (median;
-    # 2.6 mm p95) of 32 under random actions (experiments/curvature_substeps.py), as DisMech takes 2 steps
+    # 2.6 mm p95) of 32 under random actions (experiments/studies/curvature_substeps.py), as DisMech takes 2 steps
     n_substeps: int = struct.field(pytree_node=False, default=2)
     integrator: str = struct.field(pytree_node=False, default="ars443")
     sim_dtype: str = struct.field(pytree_node=False, default="float64")

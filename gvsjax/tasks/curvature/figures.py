@@ -9,8 +9,8 @@ import jax
 import matplotlib.pyplot as plt
 import numpy as np
 
-from gvsjax import plots
 from gvsjax.tasks.draw3d import backbones, draw_arm, setup_axes
+from gvsjax.utils import plots
 
 
 def distance_over_time(distance: np.ndarray, dt: float, path) -> Path:

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.curvature_arm import curvature_arm
+from gvsjax.core.curvature_arm import curvature_arm
 from gvsjax.tasks.curvature import rewards
 from gvsjax.tasks.curvature.base import CurvatureTask, EpisodeState
 from gvsjax.tasks.curvature.control import ArmControl

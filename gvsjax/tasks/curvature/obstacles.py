@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.contact import Contact, Penalty
-from gvsjax.curvature_arm import curvature_arm
-from gvsjax.obstacles import Capsule
+from gvsjax.core.contact import Contact, Penalty
+from gvsjax.core.curvature_arm import curvature_arm
+from gvsjax.core.obstacles import Capsule
 from gvsjax.tasks.curvature import rewards
 from gvsjax.tasks.curvature.base import CurvatureTask, EpisodeState
 from gvsjax.tasks.curvature.control import ArmControl

@@ -28,8 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax import plots
-from gvsjax.robots import paper_arm
+from gvsjax.core.robots import paper_arm
 from gvsjax.tasks.base import (
     Box,
     Controller,
@@ -44,6 +43,7 @@ from gvsjax.tasks.pickplace import figures
 from gvsjax.tasks.pickplace.motion import action_to_physical, reward_of, run_step
 from gvsjax.tasks.pickplace.params import PAPER_PAIR, PickPlaceParams
 from gvsjax.tasks.pickplace.targets import eval_targets, make_params, sample_targets
+from gvsjax.utils import plots
 
 # Divergence bounds on the end-of-step state: |q1|, |q2| <= 20 (= L / r: beyond it the
 # curvature can exceed 1 / radius, the inner fibre would have negative length) and

@@ -18,10 +18,10 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gvsjax.kinematics import backbone  # noqa: E402
-from gvsjax.plots import save, save_gif  # noqa: E402
+from gvsjax.core.kinematics import backbone  # noqa: E402
 from gvsjax.tasks.pickplace.motion import action_to_physical, cycloid, episode  # noqa: E402
 from gvsjax.tasks.pickplace.params import DRAWING_INTEGRATION, PickPlaceParams  # noqa: E402
+from gvsjax.utils.plots import save, save_gif  # noqa: E402
 
 
 def draw_state(ax, arm, q, targets) -> None:

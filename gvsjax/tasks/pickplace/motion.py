@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from gvsjax.simulation import simulate
+from gvsjax.core.simulation import simulate
 from gvsjax.tasks.pickplace.params import PickPlaceParams
 
 

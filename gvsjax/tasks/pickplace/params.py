@@ -30,7 +30,7 @@ class PickPlaceParams:
     # +-pi seam of the joint's range is in the input too; "cartesian": (x, y) / target_scale
     target_obs: str = struct.field(pytree_node=False, default="polar")
     n_steps: int = struct.field(pytree_node=False, default=60)  # integrator steps per 5 s step
-    integrator: str = struct.field(pytree_node=False, default="ars443")  # see gvsjax.integrators
+    integrator: str = struct.field(pytree_node=False, default="ars443")  # see gvsjax.core.integrators
     sim_dtype: str = struct.field(pytree_node=False, default="float64")  # simulate's dtype
     split: str = struct.field(pytree_node=False, default="train")  # "train", "test" or "all"
     n_test: int = struct.field(pytree_node=False, default=0)  # held-out rows at the table's end

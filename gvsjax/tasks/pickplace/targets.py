@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.robots import paper_arm
+from gvsjax.core.robots import paper_arm
 from gvsjax.tasks.pickplace.motion import episode
 from gvsjax.tasks.pickplace.params import PickPlaceParams
 

@@ -3,7 +3,7 @@
 ``params`` (the parameters), ``layouts`` (the obstacles and the contact law),
 ``env`` (the environment and its planar variant, their evaluation and rollout),
 ``figures`` (drawings and the GIF). The arm and its actuation are shared with the
-other 3D tasks (``gvsjax.tasks.arm3d``); contact is ``gvsjax.contact``'s.
+other 3D tasks (``gvsjax.tasks.arm3d``); contact is ``gvsjax.core.contact``'s.
 """
 
 from gvsjax.tasks.reach_obstacles.env import (

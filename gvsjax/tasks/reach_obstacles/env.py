@@ -3,7 +3,7 @@
 The arm (``gv.soft_arm``, two tendon groups, ``gvsjax.tasks.arm3d``) starts
 straight and at rest; the policy acts every 0.1 s for 3 s (30 steps). The
 obstacles are capsules (``layouts``) the rod touches through the penalty contact
-of ``gvsjax.contact``: it may press them, but a success allows at most
+of ``gvsjax.core.contact``: it may press them, but a success allows at most
 ``tolerance`` (1 cm) of penetration at any instant of the episode, and the
 tip must end within ``success_distance`` (5 cm) of the target.
 
@@ -35,14 +35,14 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.contact import report
-from gvsjax.kinematics import tip_frame
+from gvsjax.core.contact import report
+from gvsjax.core.kinematics import tip_frame
+from gvsjax.core.validation import concrete
 from gvsjax.tasks import arm3d
 from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.reach_obstacles import figures
 from gvsjax.tasks.reach_obstacles.layouts import POSTS_TARGET, capsules, posts, turn
 from gvsjax.tasks.reach_obstacles.params import ReachObstaclesParams
-from gvsjax.validation import concrete
 
 ERROR_GAIN = 10.0  # target minus tip observed in units of 10 cm
 GAP_RANGE = (-0.05, 0.2)  # m, the observed gaps are clipped to this

@@ -34,9 +34,9 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.contact import Contact, Penalty
-from gvsjax.obstacles import Capsule
-from gvsjax.robots import soft_arm
+from gvsjax.core.contact import Contact, Penalty
+from gvsjax.core.obstacles import Capsule
+from gvsjax.core.robots import soft_arm
 
 CAGE_TARGET = (0.8, 0.0, 0.35)  # m
 CAGE_HALF = 0.25  # m, half the cube's side
@@ -47,7 +47,7 @@ POSTS_RADIUS = 0.1  # m
 POSTS_HALF_WIDTH = 0.3  # m, half the bars' length along y: the planar arm stays at y = 0
 
 # the rod's contact law: stiff enough that pressing with the full tendon tension sinks ~1 cm into a bar,
-# soft enough for 16 ars443 steps per 0.1 s (the contact is explicit; experiments/reach_obstacles_steps.py)
+# soft enough for 16 ars443 steps per 0.1 s (the contact is explicit; experiments/studies/reach_obstacles_steps.py)
 PENALTY = Penalty(stiffness=3e5, damping=1e3)
 N_POINTS = 11  # contact samples along the arm, 10 cm apart (straight pieces: 1.25 mm off per 1/m of curvature)
 # the law runs against each piece's 4 nearest bars (Contact.nearest): a piece touches at most three at once

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.kinematics import tip_frame
+from gvsjax.core.kinematics import tip_frame
 from gvsjax.tasks import arm3d
 from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, as_controller, sanitize_action
 from gvsjax.tasks.reach_pose import figures

@@ -19,8 +19,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.kinematics import tip_frame
-from gvsjax.statics import equilibrium
+from gvsjax.core.kinematics import tip_frame
+from gvsjax.core.statics import equilibrium
 from gvsjax.tasks import arm3d
 from gvsjax.tasks.reach_pose.params import ReachPoseParams
 

@@ -22,8 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax import plots
-from gvsjax.robots import paper_arm_3d
+from gvsjax.core.robots import paper_arm_3d
 from gvsjax.tasks.ballistics import miss_metrics
 from gvsjax.tasks.base import (
     ROBOT_MATERIAL,
@@ -41,6 +40,7 @@ from gvsjax.tasks.basketball import Basketball
 from gvsjax.tasks.throw3d import figures, throw
 from gvsjax.tasks.throw3d.params import BALL_WEIGHT, Throw3DParams
 from gvsjax.tasks.throw3d.targets import make_params, observe, sample_target
+from gvsjax.utils import plots
 
 RELEASE_SPEED_BOUND = 100.0  # m/s per component: beyond it a throw counts as diverged
 # training draws half its targets uniformly over the court's volume: the far and high targets,

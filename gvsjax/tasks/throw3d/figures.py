@@ -15,10 +15,10 @@ import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gvsjax.kinematics import backbone  # noqa: E402
-from gvsjax.plots import save, save_gif  # noqa: E402
+from gvsjax.core.kinematics import backbone  # noqa: E402
 from gvsjax.tasks.throw3d import throw  # noqa: E402
 from gvsjax.tasks.throw3d.params import Throw3DParams  # noqa: E402
+from gvsjax.utils.plots import save, save_gif  # noqa: E402
 
 # the GIF's swing: 300 RK4 steps, every 5th state drawn
 SWING_STEPS, SWING_INTEGRATOR, SWING_SAVE = 300, "rk4", 5

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.robots import paper_arm_3d
+from gvsjax.core.robots import paper_arm_3d
 from gvsjax.tasks.ballistics import flight_point, floor_time
 from gvsjax.tasks.base import draw_index
 from gvsjax.tasks.throw3d.params import BALL_WEIGHT, Throw3DParams

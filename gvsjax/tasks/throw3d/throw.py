@@ -18,10 +18,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from gvsjax.simulation import simulate
+from gvsjax.core.simulation import simulate
+from gvsjax.core.trajectory import Trajectory
 from gvsjax.tasks.ballistics import closest_offset, distance, flight_point, floor_time
 from gvsjax.tasks.throw3d.params import Throw3DParams
-from gvsjax.trajectory import Trajectory
 
 _RANGES = ("T_range", "delta_range", "yaw_range")
 

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from gvsjax.kinematics import tip_state
+from gvsjax.core.kinematics import tip_state
 from gvsjax.tasks import arm3d
 from gvsjax.tasks.base import Box, Controller, Environment, EvalResult, Policy, record_episodes, sanitize_action
 from gvsjax.tasks.track3d import figures

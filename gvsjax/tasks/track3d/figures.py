@@ -7,10 +7,10 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from gvsjax import plots
-from gvsjax.kinematics import backbone
-from gvsjax.model import Robot
+from gvsjax.core.kinematics import backbone
+from gvsjax.core.model import Robot
 from gvsjax.tasks.draw3d import backbones, draw_arm, setup_axes
+from gvsjax.utils import plots
 
 
 def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path) -> Path:

@@ -6,8 +6,8 @@ from typing import Any
 
 from flax import struct
 
+from gvsjax.core.validation import require
 from gvsjax.tasks.arm3d import ArmParams
-from gvsjax.validation import require
 
 # "reachable": the box's points within reach_radius of a tip the arm holds at rest (the default);
 # "box": the whole published box, much of which no held action reaches

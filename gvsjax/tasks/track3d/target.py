@@ -20,10 +20,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from gvsjax.core.validation import concrete, require
 from gvsjax.tasks import arm3d, holdable
 from gvsjax.tasks.track3d.params import TARGET_SETS, Track3DParams
 from gvsjax.tasks.track3d.tables import TABLE_SEED, default_tips, holdable_tips
-from gvsjax.validation import concrete, require
 
 BOUNCE_CANDIDATES = 8  # directions tried at the part's boundary, the current one first
 STARTS = 16384  # accepted start points in the params

@@ -1,0 +1,96 @@
+"""The gradient MPC (gvsjax.mpc) as a reference for a task's trained policy, on the same episodes.
+
+    python experiments/studies/mpc_reference.py --task balance --episodes 100 [--checkpoint RUN_DIR]
+        [-- horizon=10 iterations=10 gradient=forward learning_rate=0.2]
+    python experiments/studies/mpc_reference.py --task balance --checkpoint RUN_DIR --policy-only
+
+Writes benchmarks/mpc_reference/<task>.json: the controller's settings, its evaluation (the task's
+metrics, from ``reset`` keys of ``--seed``), its wall time (compilation included) and the machine's
+load; with ``--checkpoint``, the policy's evaluation on the same keys beside it (``--policy-only``: added
+to the committed file, the controller's run kept). ``--table`` prints the
+committed results (the docs' ``mpc_reference`` table, docs/gen_results.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
+from gvsjax import evaluate, mpc
+from gvsjax.utils import keyvalue
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "benchmarks" / "mpc_reference"
+
+
+def add_policy(task: str, checkpoint: str) -> dict:
+    """The committed file of ``task`` with the policy ``checkpoint`` evaluated on its episodes."""
+    path = OUT / f"{task}.json"
+    record = json.loads(path.read_text())
+    start = time.perf_counter()
+    work = ROOT / "runs" / "mpc_reference" / task
+    record["policy"] = evaluate.evaluate_run(checkpoint, work / "policy", record["episodes"], record["seed"])
+    record["policy"]["wall_s"] = time.perf_counter() - start
+    record["policy_command"] = "python experiments/studies/mpc_reference.py " + " ".join(sys.argv[1:])
+    _write(path, record)
+    return record
+
+
+def _write(path: Path, record: dict) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=2))
+    tmp.replace(path)
+    print(f"wrote {path}")
+
+
+def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: str) -> dict:
+    types = {k: keyvalue.typed(evaluate.KEYS[k]) for k in evaluate.MPC_KEYS}
+    config = mpc.MPCConfig(**{**{k: evaluate.KEYS[k] for k in evaluate.MPC_KEYS},
+                              **keyvalue.parse(overrides, types)})
+    load_before = os.getloadavg()
+    work = ROOT / "runs" / "mpc_reference" / task
+    controller = evaluate.evaluate_controller(task, work / "mpc", config, episodes, seed)
+    record = {"task": task, "command": "python experiments/studies/mpc_reference.py " + " ".join(sys.argv[1:]),
+              "episodes": episodes, "seed": seed, "controller": controller,
+              "load_before": load_before, "load_after": os.getloadavg()}
+    if checkpoint:
+        start = time.perf_counter()
+        record["policy"] = evaluate.evaluate_run(checkpoint, work / "policy", episodes, seed)
+        record["policy"]["wall_s"] = time.perf_counter() - start
+    OUT.mkdir(parents=True, exist_ok=True)
+    _write(OUT / f"{task}.json", record)
+    return record
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--task", default="balance")
+    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=1_000_003)
+    ap.add_argument("--checkpoint", default="", help="a trained policy's run folder, evaluated on the same keys")
+    ap.add_argument("--policy-only", action="store_true",
+                    help="add the --checkpoint policy's evaluation to the committed file, on its episodes")
+    ap.add_argument("--table", action="store_true", help="print the committed results")
+    ap.add_argument("overrides", nargs="*", help="MPC settings as key=value (after --)")
+    args = ap.parse_args()
+    if args.table:
+        sys.path.insert(0, str(ROOT / "docs"))
+        from gen_results import mpc_reference
+
+        print(mpc_reference(ROOT))
+        return
+    if args.policy_only:
+        if not args.checkpoint:
+            ap.error("--policy-only needs --checkpoint RUN_DIR")
+        add_policy(args.task, args.checkpoint)
+        return
+    run(args.task, args.episodes, args.seed, args.overrides, args.checkpoint)
+
+
+if __name__ == "__main__":
+    main()
