@@ -366,7 +366,7 @@ def benchmark_task_runs(root: Path) -> str:
 
 
 def mpc_reference(root: Path) -> str:
-    """The gradient MPC on each task it was run on, beside the task's policy on the same episodes
+    """The MPC on each task it was run on, beside the task's policy on the same episodes
     (``benchmarks/mpc_reference/<task>.json``)."""
     import gvsjax  # noqa: F401
     from gvsjax.tasks import make
@@ -377,7 +377,9 @@ def mpc_reference(root: Path) -> str:
         c, env = d["controller"], make(d["task"])
         s = c["controller"]
         policy = env.summary(d["policy"]) if "policy" in d else "not evaluated on these episodes"
-        rows.append([d["task"], f"H {s['horizon']}, {s['iterations']} it., {s['gradient']}", d["episodes"],
+        how = (f"mppi, {s['samples']} samples, noise {s['noise']}" if s.get("planner") == "mppi"
+               else f"adam, {s['gradient']} gradient")
+        rows.append([d["task"], f"H {s['horizon']}, {s['iterations']} it., {how}", d["episodes"],
                      env.summary(c), policy, f"{c['wall_ms_per_control_step']:.0f}",
                      f"`{d['command']}`"])
     if not rows:

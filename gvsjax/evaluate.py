@@ -2,7 +2,8 @@
 
     python -m gvsjax.evaluate checkpoint=RUN_DIR [n_targets=1000] [seed=S] [out=DIR] [task=NAME]
     python -m gvsjax.evaluate task=NAME controller=mpc [horizon=10 iterations=10 learning_rate=0.1
-                              discount=1.0 gradient=reverse|forward] [n_targets=100] [seed=S] [out=DIR]
+                              discount=1.0 gradient=reverse|forward planner=adam|mppi samples=64 noise=0.3
+                              temperature=0.1] [n_targets=100] [seed=S] [out=DIR]
 
 ``checkpoint`` is a run folder (holding checkpoint.ckpt) or the checkpoint
 file; ``task`` (optional) must match the checkpoint's. Writes into ``out``
@@ -13,10 +14,10 @@ Episodes come from ``reset`` keys of ``seed``: use a seed the training did not
 use (the default, 1_000_003, is the one ``python -m gvsjax.train`` evaluates
 seed-0 runs with).
 
-``controller=mpc`` scores ``gvsjax.mpc.MPC`` (receding-horizon control by gradients
-through the simulator) instead of a checkpoint, on the same episodes; ``out`` then
-defaults to ``runs/mpc_<task>``, and eval.json adds the controller's settings and its
-wall time per control step.
+``controller=mpc`` scores ``gvsjax.mpc.MPC`` (receding-horizon control through the
+simulator, by its gradients or, with ``planner=mppi``, by sampled plans) instead of a
+checkpoint, on the same episodes; ``out`` then defaults to ``runs/mpc_<task>``, and
+eval.json adds the controller's settings and its wall time per control step.
 """
 
 from __future__ import annotations
@@ -38,8 +39,10 @@ from gvsjax.utils import keyvalue, plots
 
 USAGE = __doc__.strip()
 KEYS: dict[str, Any] = {"task": "", "checkpoint": "", "n_targets": -1, "seed": -1, "out": "", "controller": "",
-                        "horizon": 10, "iterations": 10, "learning_rate": 0.1, "discount": 1.0, "gradient": "reverse"}
-MPC_KEYS = ("horizon", "iterations", "learning_rate", "discount", "gradient")
+                        "horizon": 10, "iterations": 10, "learning_rate": 0.1, "discount": 1.0, "gradient": "reverse",
+                        "planner": "adam", "samples": 64, "noise": 0.3, "temperature": 0.1}
+MPC_KEYS = ("horizon", "iterations", "learning_rate", "discount", "gradient", "planner", "samples", "noise",
+            "temperature")
 
 
 def write_rows(path: Path, rows: dict[str, np.ndarray]) -> Path:

@@ -4,6 +4,8 @@ on the balance arm (extended tier) a plan that beats holding still."""
 
 import gvsjax  # noqa: F401, I001  (first: it configures JAX)
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -51,10 +53,14 @@ def test_config_names_the_parameter_and_its_range():
     for bad, match in ((dict(horizon=0), r"horizon=0.*\[1, 1000\]"), (dict(iterations=2.5), "iterations=2.5"),
                        (dict(learning_rate=-1.0), r"learning_rate=-1.0.*\(0, 10\]"),
                        (dict(discount=1.5), "discount=1.5"), (dict(sim_dtype="half"), "sim_dtype='half'"),
-                       (dict(gradient="adjoint"), "gradient='adjoint'.*'reverse' or 'forward'")):
+                       (dict(gradient="adjoint"), "gradient='adjoint'.*'reverse' or 'forward'"),
+                       (dict(planner="cem"), "planner='cem'.*'adam' or 'mppi'"),
+                       (dict(samples=1), r"samples=1.*\[2, 100000\]"), (dict(noise=0.0), r"noise=0.0.*\(0, 2\]"),
+                       (dict(temperature=-1), "temperature=-1")):
         with pytest.raises(ValueError, match=match):
             mpc.MPCConfig(**bad)
     assert mpc.MPCConfig(horizon=4, iterations=3).passes_per_step == 24
+    assert mpc.MPCConfig(horizon=4, iterations=3, planner="mppi", samples=10).passes_per_step == 120
 
 
 @pytest.mark.parametrize("gradient", ["reverse", "forward"])
@@ -72,10 +78,28 @@ def test_one_step_plan_is_the_closed_form_optimum_under_jit_and_vmap(gradient):
     np.testing.assert_allclose(np.asarray(action), exact, atol=2e-3)
 
 
-def test_the_plan_is_warm_started_and_the_memory_runs_through_evaluate():
+def test_sampled_one_step_plan_is_near_the_closed_form_optimum_under_jit_and_vmap():
+    """MPPI, no derivative: the best of its samples and their weighted mean close in on the optimum."""
     env = Integrator()
     params = env.default_params()
-    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=3, iterations=100, learning_rate=0.1))
+    config = mpc.MPCConfig(horizon=1, iterations=30, planner="mppi", samples=256, noise=0.3)
+    controller = mpc.MPC(env, params, config)
+    keys = jax.random.split(jax.random.PRNGKey(3), 64)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    action, _ = jax.jit(controller.act)(controller.init(obs, state), obs, state, 0)
+    exact = np.clip((np.asarray(state.goal) - np.asarray(state.x)) / GAIN, -1.0, 1.0)
+    np.testing.assert_allclose(np.asarray(action), exact, atol=2e-2)
+    # a few samples and iterations leave it far off: the tolerance above is met by the search, not by luck
+    rough = mpc.MPC(env, params, dataclasses.replace(config, iterations=1, samples=4))
+    coarse, _ = jax.jit(rough.act)(rough.init(obs, state), obs, state, 0)
+    assert np.max(np.abs(np.asarray(coarse) - exact)) > 0.2
+
+
+@pytest.mark.parametrize("planner", ["adam", "mppi"])
+def test_the_plan_is_warm_started_and_the_memory_runs_through_evaluate(planner):
+    env = Integrator()
+    params = env.default_params()
+    controller = mpc.MPC(env, params, mpc.MPCConfig(horizon=3, iterations=100, learning_rate=0.1, planner=planner))
     keys = jax.random.split(jax.random.PRNGKey(4), 8)
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     action, plan = controller.act(controller.init(obs, state), obs, state, 0)

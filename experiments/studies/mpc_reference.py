@@ -1,4 +1,5 @@
-"""The gradient MPC (gvsjax.mpc) as a reference for a task's trained policy, on the same episodes.
+"""The MPC (gvsjax.mpc: by gradients, or by sampling with planner=mppi) as a reference for a task's trained
+policy, on the same episodes.
 
     python experiments/studies/mpc_reference.py --task balance --episodes 100 [--checkpoint RUN_DIR]
         [-- horizon=10 iterations=10 gradient=forward learning_rate=0.2]
