@@ -422,7 +422,8 @@ def elastica_twins(root: Path) -> str:
                          "" if sim == "gvsjax" else
                          f"{p['return_difference']['median']:+.2f}"
                          + (f" ({100 * rel:+.1f}% of the mean" if rel is not None else " (")
-                         + f"; r = {p['return_correlation']:.3f})",
+                         + (f"; r = {p['return_correlation']:.3f})" if p["return_correlation"] is not None
+                            else "; every episode the same)"),
                          "" if sim == "gvsjax" else f"{100 * p['tip_distance_m']['median']:.1f} / "
                          f"{100 * p['tip_distance_m']['p95']:.1f} cm"])
     cmds = "\n".join(r["command"] for r in d.values())
@@ -430,8 +431,10 @@ def elastica_twins(root: Path) -> str:
                    "PyElastica - gvsjax, per episode: median (mean's share; correlation)",
                    "tip apart: median / p95"], rows)
             + "\n\nReturn: the benchmark's discounted return averaged over start steps (gamma 0.99). "
-            "follow_target and ik_4d: the gvsjax-trained PPO policies, deterministic; the obstacle tasks: "
-            "open-loop random actions held 10 steps. Data: `benchmarks/elastica_twins.json`."
+            "A row named after a policy runs that gvsjax-trained policy, deterministic; the other rows of "
+            "follow_target and ik_4d run the PPO defaults, and those of the obstacle tasks open-loop random "
+            "actions held 10 steps. obstacles_2d has one fixed start, layout and target, so a policy's "
+            "episodes are all the same one. Data: `benchmarks/elastica_twins.json`."
             + ("\n\nThe curvature mappings alone (no load, rest shapes): the discrete rod's tip and gvsjax's "
                "continuum's are " + ", ".join(f"{1000 * r['tip_gap_m']['median']:.1f} mm" for r in shape["rows"])
                + " apart (median over " + str(shape["rows"][0]["n"]) + " random turning angles uniform in "

@@ -53,7 +53,8 @@ class MPCConfig:
     "float64"; the episode itself is simulated by the task's params). For ``mppi`` each
     iteration simulates ``samples`` plans: the current one and ``samples - 1`` perturbed by
     Gaussian noise of std ``noise`` (action units, clipped to the box); the new plan is their
-    average weighted by exp(-(cost - min) / (temperature x the costs' std)).
+    average weighted by exp(-(cost - min) / (temperature x s)), s the costs'
+    root-mean-square distance from their minimum (so the weights do not depend on the reward's scale).
     """
 
     horizon: int = 10

@@ -153,8 +153,9 @@ def compare(task, params, g: dict, e: dict) -> dict:
     return {**side, "paired": {
         "return_difference": stats(re - rg),
         "relative_mean_difference": float((re.mean() - rg.mean()) / abs(rg.mean())) if rg.mean() else None,
-        "mean_difference_over_gvsjax_std": float((re.mean() - rg.mean()) / rg.std()),
-        "return_correlation": float(np.corrcoef(rg, re)[0, 1]),
+        # None where every episode is the same (obstacles_2d: a fixed start, layout and target)
+        "mean_difference_over_gvsjax_std": float((re.mean() - rg.mean()) / rg.std()) if rg.std() > 0 else None,
+        "return_correlation": float(np.corrcoef(rg, re)[0, 1]) if rg.std() > 0 and re.std() > 0 else None,
         "tip_distance_m": {"mean": float(np.nanmean(tip)), "median": float(np.nanmedian(tip)),
                            "p95": float(np.nanpercentile(tip, 95)), "max": float(np.nanmax(tip))},
         "targets_identical": bool(np.allclose(g["target"], e["target"], atol=1e-9)),
@@ -175,13 +176,14 @@ def run(args) -> None:
     g = gvsjax_runs(task, params, policy, keys, actions)
     wall_g = time.perf_counter() - t1
     res = compare(task, params, g, e)
-    name = args.task if args.contact == "theirs" or policy is not None else f"{args.task} (gvsjax's contact law)"
+    touches = args.task.startswith("obstacles")  # the contact law matters, policy or not
+    name = f"{args.task} (gvsjax's contact law)" if touches and args.contact == "gvsjax" else args.task
     name = f"{name} ({LABEL} policy)" if LABEL else name
     ep = int(np.argsort(res["pyelastica"]["per_episode_return"])[first // 2])  # the median episode, for the figure
     res.update(task=args.task, n_episodes=first, of_keys=f"the first {first} of split(PRNGKey({EVAL_SEED}), {n})",
                policy=CHECKPOINTS.get(args.task, f"open loop, held {args.hold} steps, "
                                                                                  f"seed {args.seed}"),
-               contact=args.contact if policy is None else None, eval_seed=EVAL_SEED, label=LABEL,
+               contact=args.contact if touches else None, eval_seed=EVAL_SEED, label=LABEL,
                pyelastica={**res["pyelastica"], "seconds_per_episode": stats(e["wall_s"]),
                            "verlet_steps_per_episode": int(np.max(e["verlet_steps"])),
                            "wall_s_this_run": wall_e},
