@@ -74,7 +74,9 @@ _CACHE: dict = {}
 
 def _episode(job) -> tuple[int, dict]:
     """One PyElastica episode (in this process or a spawned worker)."""
-    task_name, i, n, seed, hold, contact = job
+    task_name, i, n, seed, hold, contact, checkpoint = job
+    if checkpoint:  # a spawned worker starts from the module's defaults
+        CHECKPOINTS[task_name] = checkpoint
     if job[:1] + job[2:] not in _CACHE:  # one twin (its jitted reward and observation) for all episodes
         task, params, policy = setup(task_name)
         _CACHE[job[:1] + job[2:]] = (task, policy, et.ElasticaTwin(task, params, contact=CONTACTS[contact]),
@@ -95,7 +97,8 @@ def elastica_runs(task_name, n, seed, hold, contact, cache_dir, workers, first) 
     os.makedirs(cache_dir, exist_ok=True)
     tag = f"{task_name}_{LABEL}" if LABEL else task_name
     path = lambda i: os.path.join(cache_dir, f"{tag}_{contact}_n{n}_s{seed}_h{hold}_{i}.npz")  # noqa: E731
-    todo = [(task_name, i, n, seed, hold, contact) for i in range(first) if not os.path.exists(path(i))]
+    job = (task_name, n, seed, hold, contact, CHECKPOINTS.get(task_name, "") if LABEL else "")
+    todo = [(job[0], i, *job[1:]) for i in range(first) if not os.path.exists(path(i))]
     print(f"{task_name}: {first - len(todo)} PyElastica episodes cached, {len(todo)} to run", flush=True)
     t0 = time.perf_counter()
 
@@ -211,10 +214,12 @@ def figure(path_json: str, out: str) -> None:
     import matplotlib.pyplot as plt
 
     data = json.load(open(path_json))
-    names = [k for k in ("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d") if k in data]
+    # each task's SAC-policy entry where there is one (--label SAC, their contact law), else its default
+    names = [(k, f"{k} (SAC policy)" if f"{k} (SAC policy)" in data else k)
+             for k in ("follow_target", "ik_4d", "obstacles_2d", "obstacles_3d") if k in data]
     fig, axes = plt.subplots(2, len(names), figsize=(4.2 * len(names), 7.2), squeeze=False)
-    for j, name in enumerate(names):
-        f = data[name]["figure_episode"]
+    for j, (name, entry) in enumerate(names):
+        f = data[entry]["figure_episode"]
         tg, te, tt = (np.array(f[k]) for k in ("tip_gvsjax", "tip_pyelastica", "target"))
         t = 0.1 * np.arange(1, len(tg) + 1) * (5 if name.startswith("obstacles") else 1)
         ax = axes[0, j]
@@ -230,7 +235,9 @@ def figure(path_json: str, out: str) -> None:
         ax.plot(te[:k, 0], te[:k, 2], lw=1.2, ls="--", label="PyElastica tip")
         ax.plot(*tt[0, [0, 2]], "ko", ms=4)
         span = " (first 10 s)" if k < len(tg) else ""
-        ax.set(xlabel="x (m)", ylabel="z (m)", title=f"{name}, episode {f['index']}{span}: x-z", aspect="equal")
+        who = "SAC" if entry != name else ("open loop" if name.startswith("obstacles") else "PPO")
+        ax.set(xlabel="x (m)", ylabel="z (m)", title=f"{name} ({who}), episode {f['index']}{span}: x-z",
+               aspect="equal")
         ax.legend(fontsize=7)
         bx = axes[1, j]
         bx.plot(t, 100 * np.linalg.norm(tg - tt, axis=1), label="gvsjax: tip to target")
@@ -275,8 +282,8 @@ def main() -> None:
     ap.add_argument("--figure", action="store_true", help="only draw figures/elastica_twins.png from the JSON")
     ap.add_argument("--shapes", action="store_true", help="only the rest-shape gap of the two curvature mappings")
     args = ap.parse_args()
-    if bool(args.checkpoint) != bool(args.label) or (args.checkpoint and args.workers != 1):
-        ap.error("--checkpoint and --label go together, with --workers 1")
+    if bool(args.checkpoint) != bool(args.label):
+        ap.error("--checkpoint and --label go together")
     if args.checkpoint:
         global LABEL
         CHECKPOINTS[args.task], LABEL = args.checkpoint, args.label
