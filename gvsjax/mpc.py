@@ -172,11 +172,11 @@ class MPC:
             noise = c.noise * jax.random.normal(k, (c.samples - 1, *a.shape), a.dtype)
             plans = jnp.concatenate([a[None], jnp.clip(a + noise, -1.0, 1.0)])
             costs = costs_of(plans, state)
-            costs = jnp.where(jnp.isfinite(costs), costs, jnp.inf)  # a diverged plan gets no weight
+            finite = jnp.isfinite(costs)
+            costs = jnp.where(finite, costs, jnp.inf)  # a diverged plan gets no weight
             i = jnp.argmin(costs)
             better = costs[i] < best_cost
             best, best_cost = jnp.where(better, plans[i], best), jnp.where(better, costs[i], best_cost)
-            finite = jnp.isfinite(costs)
             spread = jnp.sqrt(jnp.sum(jnp.where(finite, (costs - costs[i]) ** 2, 0.0)) / jnp.maximum(finite.sum(), 1))
             # scale-free weights: the temperature is a fraction of the sampled costs' spread
             w = jax.nn.softmax(jnp.where(finite, -(costs - costs[i]) / (c.temperature * spread + 1e-12), -jnp.inf))
