@@ -89,6 +89,9 @@ def test_the_force_and_moment_are_minus_the_energys_central_differences(kind):
     np.testing.assert_allclose(mom, -fd_m, rtol=1e-5, atol=1e-5 * float(jnp.max(jnp.abs(mom))))
 
 
+# extended: the default run checks the capsules' reverse passes (above) and a gradient through a run
+# against a plane (test_contact); this is their one long compile together
+@pytest.mark.extended
 def test_jit_vmap_and_grad_through_a_run_against_capsules():
     """The clamped arm swung into a bar: a batch of bar positions under jit(vmap), and the gradient
     of the tip's final x with respect to the bar's position against central differences."""

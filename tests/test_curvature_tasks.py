@@ -2,8 +2,6 @@
 the orientation distance against independent computations; the control law; follow_target and ik_4d
 under jit and vmap for several steps; bad input."""
 
-import dataclasses
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -81,14 +79,24 @@ def test_control_law_steps_clips_and_spreads_over_the_segments():
     np.testing.assert_allclose(u[:, 1], np.asarray(kappa[:, 1]) * share)
 
 
+_STEPS: dict = {}
+
+
+def batched_step(name):
+    """One jit(vmap(step)) per task for the module: every test here then shares its compile."""
+    if name not in _STEPS:
+        env = make(name)
+        _STEPS[name] = env, jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
+    return _STEPS[name]
+
+
 @pytest.mark.parametrize("name", ["follow_target", "ik_4d"])
 def test_task_runs_under_jit_and_vmap(name):
-    env = make(name)
+    env, step = batched_step(name)
     params = env.default_params()
     keys = jax.random.split(jax.random.PRNGKey(0), 3)
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     assert obs.shape == (3, env.obs_size)
-    step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
     actions = jnp.ones((3, env.action_size)).at[1].set(-1.0).at[2].set(0.0)
     for _ in range(3):
         obs, state, reward, done, info = step(keys, state, actions, params)
@@ -111,25 +119,16 @@ def test_a_wrong_arm_is_named():
 
 
 def test_the_step_reports_the_benchmark_return_at_the_episode_end():
-    base = type(make("follow_target"))
-
-    class Short(base):  # a 4-step episode
-        episode_length = 4
-
-        def default_params(self):
-            return dataclasses.replace(super().default_params(), episode_steps=4)
-
-    env = Short()
+    env, step = batched_step("follow_target")  # the program the jit/vmap test compiled: a whole episode
     params = env.default_params()
-    key = jax.random.PRNGKey(2)
-    obs, state = env.reset(key, params)
-    step = jax.jit(env.step)
-    rewards_, done = [], False
+    keys = jax.random.split(jax.random.PRNGKey(2), 3)
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
     rng = np.random.default_rng(0)
-    while not done:
-        obs, state, reward, done, info = step(key, state, jnp.asarray(rng.uniform(-1, 1, 10)), params)
-        rewards_.append(float(reward))
-    assert len(rewards_) == 4
-    expected = control.discounted_returns(np.array([rewards_]))["average"][0]
-    np.testing.assert_allclose(float(info["benchmark_return"]), expected, rtol=1e-6)
-
+    rewards_, done = [], np.zeros(3, bool)
+    while not done.any():
+        obs, state, reward, done, info = step(keys, state, jnp.asarray(rng.uniform(-1, 1, (3, 10))), params)
+        rewards_.append(np.asarray(reward))
+        done = np.asarray(done)
+    assert len(rewards_) == env.episode_length and done.all()
+    expected = control.discounted_returns(np.stack(rewards_, 1))["average"]
+    np.testing.assert_allclose(np.asarray(info["benchmark_return"]), expected, rtol=1e-6)
