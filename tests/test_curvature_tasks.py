@@ -2,6 +2,8 @@
 the orientation distance against independent computations; the control law; follow_target and ik_4d
 under jit and vmap for several steps; bad input."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -79,15 +81,11 @@ def test_control_law_steps_clips_and_spreads_over_the_segments():
     np.testing.assert_allclose(u[:, 1], np.asarray(kappa[:, 1]) * share)
 
 
-_STEPS: dict = {}
-
-
+@functools.cache
 def batched_step(name):
     """One jit(vmap(step)) per task for the module: every test here then shares its compile."""
-    if name not in _STEPS:
-        env = make(name)
-        _STEPS[name] = env, jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
-    return _STEPS[name]
+    env = make(name)
+    return env, jax.jit(jax.vmap(env.step, in_axes=(0, 0, 0, None)))
 
 
 @pytest.mark.parametrize("name", ["follow_target", "ik_4d"])
