@@ -380,13 +380,29 @@ def mpc_reference(root: Path) -> str:
         how = (f"mppi, {s['samples']} samples, noise {s['noise']}" if s.get("planner") == "mppi"
                else f"adam, {s['gradient']} gradient")
         rows.append([d["task"], f"H {s['horizon']}, {s['iterations']} it., {how}", d["episodes"],
-                     env.summary(c), policy, f"{c['wall_ms_per_control_step']:.0f}",
+                     env.summary(c), policy, _fraction(env, c, d.get("policy")), _per_step(c),
                      f"`{d['command']}`"])
     if not rows:
         return "No MPC run is committed yet."
     return (table(["task", "MPC settings", "episodes", "MPC", "trained policy, same episodes",
-                   "MPC wall ms per control step and episode (batched, compile included)", "command"], rows)
+                   "policy / MPC (the task's headline)", "MPC ms per control step and episode (batched)", "command"],
+                  rows)
             + "\n\nData: `benchmarks/mpc_reference/*.json` (settings, metrics, wall time, machine load).")
+
+
+def _fraction(env, mpc: dict, policy: dict | None) -> str:
+    """The policy's headline metric as a fraction of the MPC's."""
+    a, b = env.headline(mpc), env.headline(policy) if policy else None
+    if a is None or b is None:
+        return "-"
+    return f"{b[1] / a[1]:.2f} ({a[0]}: {b[1]:.3g} / {a[1]:.3g})" if a[1] else f"- ({a[0]}: {b[1]:.3g} / 0)"
+
+
+def _per_step(c: dict) -> str:
+    """Run time per control step (compile separate) where recorded; older runs: wall time with compile."""
+    if "run_ms_per_control_step" in c:
+        return f"{c['run_ms_per_control_step']:.0f} (+ {c['compile_s']:.0f} s compiling)"
+    return f"{c['wall_ms_per_control_step']:.0f} (compile included)"
 
 
 def _metric_cells(task: str, m: dict) -> str:

@@ -142,7 +142,23 @@ def test_cli_evaluates_the_controller(tmp_path, monkeypatch, capsys):
 
     result = json.loads((tmp_path / "eval.json").read_text())
     assert result["controller"]["horizon"] == 2 and result["n_episodes"] == 4 and result["wall_s"] > 0
+    # the batch's wall time splits into compiling (this program is new: it compiles) and running
+    assert 0.0 < result["compile_s"] < result["wall_s"]
+    steps = 4 * Integrator.episode_length
+    assert result["run_ms_per_control_step"] == pytest.approx(1e3 * (result["wall_s"] - result["compile_s"]) / steps)
     assert "ms per control step" in capsys.readouterr().out
+
+
+def test_compile_clock_counts_a_new_program_and_not_a_cached_one():
+    from gvsjax.utils.compile_clock import compile_seconds
+
+    f = jax.jit(lambda x: jnp.sin(x) * 3.0 + jnp.cumsum(x))
+    x = jnp.arange(5.0)
+    with compile_seconds() as first:
+        f(x).block_until_ready()
+    with compile_seconds() as again:
+        f(x).block_until_ready()
+    assert first[0] > 0.0 and again[0] == 0.0
 
 
 @pytest.mark.extended

@@ -252,6 +252,11 @@ class Environment:
                    "median_return": float(np.nanmedian(ret)) if valid.any() else float("nan")}
         return EvalResult(metrics=metrics, rows={"return": ret, "valid": valid})
 
+    def headline(self, metrics: Mapping[str, Any]) -> tuple[str, float] | None:
+        """The one number of an evaluation's metrics that ranks two controllers of this task
+        (higher is better), with its name; None: the task names none."""
+        return None
+
     def summary(self, metrics: Mapping[str, Any]) -> str:
         """One or a few lines describing an evaluation's metrics."""
         shown = {k: v for k, v in metrics.items() if k not in ("task", "checkpoint")}

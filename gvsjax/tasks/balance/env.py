@@ -209,6 +209,9 @@ class Balance(Environment):
                                  "time_to_upright": t_up, "dt": float(params.control_dt),
                                  "torque_max": float(params.torque_max), "upright_deg": float(params.upright_deg)})
 
+    def headline(self, metrics) -> tuple[str, float]:
+        return "success", metrics["success_rate"]
+
     def summary(self, metrics) -> str:
         t, w = metrics["time_to_upright_s"], metrics["wobble_rms_deg"]
         last = metrics[f"last_{MIN_HOLD_S:g}s_max_deg"]

@@ -190,6 +190,9 @@ class CurvatureTask(Environment):
     def episode_rows(self, out: dict, params) -> dict:
         return {}
 
+    def headline(self, metrics) -> tuple[str, float]:
+        return "discounted return", metrics["discounted_return_average"]["mean"]
+
     def figures(self, params, result: EvalResult, out: Path) -> list[Path]:
         return figures.evaluation_figures(self, result.extra, out)
 

@@ -302,6 +302,9 @@ class ReachObstacles(Environment):
         return EvalResult(metrics=metrics, rows=rows, extra={"policy": pol, "held_action": held,
                                                              "ramped_action": ramped, "dt": params.arm.control_dt})
 
+    def headline(self, metrics) -> tuple[str, float]:
+        return "success", metrics["policy"]["success"]
+
     def summary(self, metrics) -> str:
         parts = []
         for name in ("policy", "held_action", "ramped_action"):

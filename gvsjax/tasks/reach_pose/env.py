@@ -173,6 +173,9 @@ class ReachPose(Environment):
         return EvalResult(metrics=metrics, rows=rows,
                           extra={"policy": pol, "held_action": base, "dt": params.arm.control_dt})
 
+    def headline(self, metrics) -> tuple[str, float]:
+        return "within 5 cm & 10 deg", metrics["policy"]["within_5cm_10deg"]
+
     def summary(self, metrics) -> str:
         parts = []
         for name in ("policy", "held_action"):

@@ -173,6 +173,9 @@ class Track3D(Environment):
                           extra={"distance": d, "rest_distance": rest, "tip": out["tip"][:4],
                                  "target": out["target"][:4], "dt": params.arm.control_dt})
 
+    def headline(self, metrics) -> tuple[str, float]:
+        return f"within 5 cm after {SETTLE_S:g} s", metrics[f"after_{SETTLE_S:g}s"]["within_5cm"]
+
     def summary(self, metrics) -> str:
         a, b = metrics["all_steps"], metrics[f"after_{SETTLE_S:g}s"]
         return (f"eval on {metrics['n_episodes']} episodes: mean distance {100 * a['mean_m']:.1f} cm "
