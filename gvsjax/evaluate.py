@@ -23,6 +23,7 @@ eval.json adds the controller's settings and its wall time per control step.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import gc
 import json
 import sys
@@ -98,7 +99,7 @@ def evaluate_controller(task: str, out, config, n_episodes: int = 100, seed: int
                "run_ms_per_control_step": 1e3 * (wall - compiling[0]) / steps, **result.metrics}
     (out / "eval.json").write_text(json.dumps(summary, indent=2))
     write_rows(out / env.rows_file, result.rows)
-    env.figures(params, result, out)
+    env.figures(params, dataclasses.replace(result, extra={**result.extra, "who": "MPC"}), out)
     return summary
 
 

@@ -279,6 +279,9 @@ def test_evaluation_figures_draw_the_curves(tmp_path, monkeypatch):
     assert len(figs["tracking_paths.png"]) == 8  # a tip and a target path per episode
     bars = [ln for ln in figs["error_histogram.png"] if ln["label"] == "bars"][0]
     assert abs(bars["y"].sum() - 100) < 1e-9
+    # an MPC's evaluation names it in the legend (evaluate controller=mpc sets "who")
+    evaluation_figures({**extra, "who": "MPC"}, tmp_path)
+    finite_line(figs["tracking_distance.png"], "MPC, median", 100)
 
 
 def test_the_tendon_arm_simulates_in_float32():

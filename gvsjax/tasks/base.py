@@ -143,7 +143,8 @@ class EvalResult:
 
     ``metrics``: JSON-able summary (written to eval.json); ``rows``: one entry per
     episode for each column (written to the task's ``rows_file``); ``extra``:
-    whatever the task's ``figures`` need (e.g. the actions taken).
+    whatever the task's ``figures`` need (e.g. the actions taken), and optionally ``"who"``: the
+    name the figures give what was evaluated (default "policy"; the MPC's evaluation sets "MPC").
     """
 
     metrics: dict[str, Any]

@@ -14,14 +14,14 @@ from gvsjax.utils import plots
 
 
 def over_time(policy: dict, held: dict, dt: float, tolerance: float, success: float, path,
-              ramped: dict | None = None) -> Path:
+              ramped: dict | None = None, who: str = "policy") -> Path:
     """Median and 5-95% band of the tip's distance to the target and of each step's deepest
     penetration, for the policy and the held reference action; the median alone for the ramped one."""
     t = dt * np.arange(1, policy["distance"].shape[1] + 1)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, key, scale, unit, limit in ((axes[0], "distance", 100.0, "tip to target [cm]", success),
                                         (axes[1], "depth", 1000.0, "deepest penetration in the step [mm]", tolerance)):
-        for out, color, label in ((policy, "tab:blue", "policy"), (held, "tab:orange", "reference action, held")):
+        for out, color, label in ((policy, "tab:blue", who), (held, "tab:orange", "reference action, held")):
             x = scale * np.where(out["valid"], out[key], np.nan)
             ax.fill_between(t, np.nanpercentile(x, 5, 0), np.nanpercentile(x, 95, 0), alpha=0.2, color=color)
             ax.plot(t, np.nanmedian(x, 0), color=color, lw=2, label=f"{label}, median")
@@ -70,7 +70,7 @@ def evaluation_figures(params, extra: dict, out: Path, robots: list[Robot]) -> l
     pol, held = extra["policy"], extra["held_action"]
     k = len(robots)
     return [over_time(pol, held, extra["dt"], params.tolerance, params.success_distance,
-                      out / "reach_obstacles_over_time.png", extra.get("ramped_action")),
+                      out / "reach_obstacles_over_time.png", extra.get("ramped_action"), extra.get("who", "policy")),
             final_arms(robots, pol["q"][:k, -1], pol["target"][:k], params.success_distance,
                        out / "reach_obstacles_final.png")]
 

@@ -15,7 +15,7 @@ from gvsjax.utils import plots
 ARROW = 0.15  # m, the drawn length of a target direction
 
 
-def errors_over_time(policy: dict, held: dict, dt: float, path) -> Path:
+def errors_over_time(policy: dict, held: dict, dt: float, path, who: str = "policy") -> Path:
     """Median and 5-95% band of the position and angle errors at each control step, for the
     policy and for the open-loop held action."""
     t = dt * np.arange(1, policy["distance"].shape[1] + 1)
@@ -23,7 +23,7 @@ def errors_over_time(policy: dict, held: dict, dt: float, path) -> Path:
     for ax, key, scale, unit in ((axes[0], "distance", 100.0, "position error [cm]"),
                                  (axes[1], "angle_deg", 1.0, "angle error [deg]")):
         what = unit.split()[0]
-        for out, color, label in ((policy, "tab:blue", "policy"), (held, "tab:orange", "target's own action, held")):
+        for out, color, label in ((policy, "tab:blue", who), (held, "tab:orange", "target's own action, held")):
             x = scale * np.where(out["valid"], out[key], np.nan)
             ax.fill_between(t, np.nanpercentile(x, 5, 0), np.nanpercentile(x, 95, 0), alpha=0.2, color=color)
             ax.plot(t, np.nanmedian(x, 0), color=color, lw=2, label=f"{label}: {what}, median")
@@ -36,10 +36,10 @@ def errors_over_time(policy: dict, held: dict, dt: float, path) -> Path:
     return plots.save(fig, path)
 
 
-def final_errors(policy: dict, held: dict, path) -> Path:
+def final_errors(policy: dict, held: dict, path, who: str = "policy") -> Path:
     """Final position vs angle error of every episode, with the success boxes."""
     fig, ax = plt.subplots(figsize=(6, 5))
-    for out, color, label in ((held, "tab:orange", "target's own action, held"), (policy, "tab:blue", "policy")):
+    for out, color, label in ((held, "tab:orange", "target's own action, held"), (policy, "tab:blue", who)):
         ok = out["valid"][:, -1]
         ax.plot(100 * out["distance"][ok, -1], out["angle_deg"][ok, -1], ".", ms=3, alpha=0.5, color=color,
                 label=label)
@@ -74,8 +74,9 @@ def evaluation_figures(params, extra: dict, out: Path) -> list[Path]:
     """The figures of an evaluation (``ReachPose.evaluate``'s ``extra``)."""
     pol, held = extra["policy"], extra["held_action"]
     k = min(4, pol["q"].shape[0])
-    return [errors_over_time(pol, held, extra["dt"], out / "reach_errors.png"),
-            final_errors(pol, held, out / "reach_final_errors.png"),
+    who = extra.get("who", "policy")
+    return [errors_over_time(pol, held, extra["dt"], out / "reach_errors.png", who),
+            final_errors(pol, held, out / "reach_final_errors.png", who),
             final_poses(params.arm.robot, pol["q"][:k, -1], np.asarray(params.position[:k]),
                         np.asarray(params.axis[:k]), out / "reach_poses.png")]
 

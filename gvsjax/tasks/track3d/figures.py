@@ -13,15 +13,15 @@ from gvsjax.tasks.draw3d import backbones, draw_arm, setup_axes
 from gvsjax.utils import plots
 
 
-def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path) -> Path:
-    """Median and 5-95% band of the tip-to-target distance at each control step, with the
-    distance an arm left at rest would have."""
+def distance_over_time(distance: np.ndarray, rest: np.ndarray, dt: float, path, who: str = "policy") -> Path:
+    """Median and 5-95% band of the tip-to-target distance at each control step (``who``: the
+    controller's name in the legend), with the distance an arm left at rest would have."""
     t = dt * np.arange(1, distance.shape[1] + 1)
     cm = 100 * np.where(np.isfinite(distance), distance, np.nan)
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.fill_between(t, np.nanpercentile(cm, 5, 0), np.nanpercentile(cm, 95, 0), alpha=0.25, color="tab:blue",
-                    label="policy, 5-95%")
-    ax.plot(t, np.nanmedian(cm, 0), color="tab:blue", lw=2, label="policy, median")
+                    label=f"{who}, 5-95%")
+    ax.plot(t, np.nanmedian(cm, 0), color="tab:blue", lw=2, label=f"{who}, median")
     ax.plot(t, np.median(100 * rest, 0), color="0.4", ls="--", label="arm left at rest, median")
     for level in (5, 10):
         ax.axhline(level, color="tab:green", lw=0.8, ls=":")
@@ -53,7 +53,8 @@ def paths_3d(tip: np.ndarray, target: np.ndarray, path) -> Path:
 def evaluation_figures(extra: dict, out: Path) -> list[Path]:
     """The figures of an evaluation (``Track3D.evaluate``'s ``extra``)."""
     d = extra["distance"]
-    return [distance_over_time(d, extra["rest_distance"], extra["dt"], out / "tracking_distance.png"),
+    return [distance_over_time(d, extra["rest_distance"], extra["dt"], out / "tracking_distance.png",
+                              extra.get("who", "policy")),
             paths_3d(extra["tip"], extra["target"], out / "tracking_paths.png"),
             plots.error_histogram(d[np.isfinite(d)], out / "error_histogram.png", max_cm=20,
                                   title="tip-to-target distance at each control step")]
