@@ -29,7 +29,7 @@ TASK_PAGES = {  # task -> its page (docs-relative); the eval files of these task
     "reach_obstacles_2d": "tasks/reach_obstacles.md", "balance": "tasks/balance.md",
 }
 GROUPS = {"default": "the default", "longer": "longer training", "reference": "references and baselines",
-          "variant": "variants (studies)"}
+          "box": "on the whole box (before the reachable default)", "variant": "variants (studies)"}
 
 
 # ---------------------------------------------------------------- formatting
@@ -631,7 +631,7 @@ def tables(root: Path = ROOT) -> dict[str, str]:
         if task == "basketball":
             continue
         d = eval_file(root, task)
-        out[task] = eval_table(d, ("default", "longer", "reference"))
+        out[task] = eval_table(d, ("default", "longer", "reference", "box"))
         if any(r["group"] == "variant" for r in d["runs"]):
             out[f"{task}_variants"] = eval_table(d, ("variant",))
     for name, make in STUDIES.items():
