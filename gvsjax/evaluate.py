@@ -17,7 +17,8 @@ seed-0 runs with).
 ``controller=mpc`` scores ``gvsjax.mpc.MPC`` (receding-horizon control through the
 simulator, by its gradients or, with ``planner=mppi``, by sampled plans) instead of a
 checkpoint, on the same episodes; ``out`` then defaults to ``runs/mpc_<task>``, and
-eval.json adds the controller's settings and its wall time per control step.
+eval.json adds the controller's settings, its wall time, the part spent compiling and the run time
+per control step.
 """
 
 from __future__ import annotations
