@@ -395,7 +395,9 @@ def _fraction(env, mpc: dict, policy: dict | None) -> str:
     a, b = env.headline(mpc), env.headline(policy) if policy else None
     if a is None or b is None:
         return "-"
-    return f"{b[1] / a[1]:.2f} ({a[0]}: {b[1]:.3g} / {a[1]:.3g})" if a[1] else f"- ({a[0]}: {b[1]:.3g} / 0)"
+    if a[1] > 0 and b[1] >= 0:
+        return f"{b[1] / a[1]:.2f} ({a[0]}: {b[1]:.3g} / {a[1]:.3g})"
+    return f"no ratio: a value below 0 ({a[0]}: {b[1]:.3g} / {a[1]:.3g})"
 
 
 def _per_step(c: dict) -> str:
