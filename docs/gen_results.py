@@ -380,7 +380,7 @@ def mpc_reference(root: Path) -> str:
         how = (f"mppi, {s['samples']} samples, noise {s['noise']}" if s.get("planner") == "mppi"
                else f"adam, {s['gradient']} gradient")
         rows.append([d["task"], f"H {s['horizon']}, {s['iterations']} it., {how}", d["episodes"],
-                     env.summary(c), policy, _fraction(env, c, d.get("policy")), _per_step(c),
+                     env.summary({**c, "who": "MPC"}), policy, _fraction(env, c, d.get("policy")), _per_step(c),
                      f"`{d['command']}`"])
     if not rows:
         return "No MPC run is committed yet."

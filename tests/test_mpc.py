@@ -142,6 +142,7 @@ def test_cli_evaluates_the_controller(tmp_path, monkeypatch, capsys):
 
     result = json.loads((tmp_path / "eval.json").read_text())
     assert result["controller"]["horizon"] == 2 and result["n_episodes"] == 4 and result["wall_s"] > 0
+    assert result["who"] == "MPC"  # the summaries and figures name the controller
     # the batch's wall time splits into compiling (this program is new: it compiles) and running
     assert 0.0 < result["compile_s"] < result["wall_s"]
     steps = 4 * Integrator.episode_length

@@ -309,7 +309,8 @@ class ReachObstacles(Environment):
         parts = []
         for name in ("policy", "held_action", "ramped_action"):
             m = metrics[name]
-            parts.append(f"{name.replace('_', ' ')}: success {100 * m['success']:.1f}% (tip within 5 cm "
+            label = metrics.get("who", "policy") if name == "policy" else name.replace("_", " ")  # an MPC's: "MPC"
+            parts.append(f"{label}: success {100 * m['success']:.1f}% (tip within 5 cm "
                          f"{100 * m['reached']:.1f}%, penetration beyond 1 cm {100 * m['penetrated']:.1f}%), final "
                          f"distance {100 * m['distance_mean_m']:.1f} cm (median {100 * m['distance_median_m']:.1f}), "
                          f"deepest penetration median {1000 * m['deepest_median_m']:.1f} mm")

@@ -180,7 +180,8 @@ class ReachPose(Environment):
         parts = []
         for name in ("policy", "held_action"):
             m = metrics[name]
-            parts.append(f"{name.replace('_', ' ')}: final distance {100 * m['distance_mean_m']:.1f} cm (median "
+            label = metrics.get("who", "policy") if name == "policy" else name.replace("_", " ")  # an MPC's: "MPC"
+            parts.append(f"{label}: final distance {100 * m['distance_mean_m']:.1f} cm (median "
                          f"{100 * m['distance_median_m']:.1f}), angle {m['angle_mean_deg']:.1f} deg (median "
                          f"{m['angle_median_deg']:.1f}), within 5 cm & 10 deg {100 * m['within_5cm_10deg']:.1f}%, "
                          f"2 cm & 5 deg {100 * m['within_2cm_5deg']:.1f}%")
