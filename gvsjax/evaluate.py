@@ -95,12 +95,13 @@ def evaluate_controller(task: str, out, config, n_episodes: int = 100, seed: int
     wall = time.perf_counter() - start
     steps = n_episodes * env.episode_length
     # per control step and episode: the batch's wall time less compilation (the batch shares each step)
-    summary = {"task": env.name, "who": "MPC", "controller": mpc.describe(config), "seed": seed, "wall_s": wall,
+    who = "MPC"  # what the summary and the figures call the evaluated controller
+    summary = {"task": env.name, "who": who, "controller": mpc.describe(config), "seed": seed, "wall_s": wall,
                "compile_s": compiling[0], "wall_ms_per_control_step": 1e3 * wall / steps,
                "run_ms_per_control_step": 1e3 * (wall - compiling[0]) / steps, **result.metrics}
     (out / "eval.json").write_text(json.dumps(summary, indent=2))
     write_rows(out / env.rows_file, result.rows)
-    env.figures(params, dataclasses.replace(result, extra={**result.extra, "who": "MPC"}), out)
+    env.figures(params, dataclasses.replace(result, extra={**result.extra, "who": who}), out)
     return summary
 
 
