@@ -545,7 +545,9 @@ def compile_time(root: Path) -> str:
     trees = list(d["trees"])
     by = {(r["model"], r["n_gauss"], r["tree"]): r for r in d["rows"]}
     rows = []
-    for model, g in dict.fromkeys((r["model"], r["n_gauss"]) for r in d["rows"]):
+    dofs = {r["model"]: r["dofs"] for r in d["rows"]}
+    for model, g in sorted(dict.fromkeys((r["model"], r["n_gauss"]) for r in d["rows"]),
+                           key=lambda mg: (dofs[mg[0]], mg[0], mg[1])):
         cells = [f"`{model}`", next(r["dofs"] for r in d["rows"] if r["model"] == model), g]
         runs = [by.get((model, g, t)) for t in trees]
         for r in runs:
@@ -566,7 +568,7 @@ def compile_time(root: Path) -> str:
             "(on a loaded machine the least disturbed); "
             f"each model and tree in its own process, the trees interleaved; 1-minute load average "
             f"{min(loads):.1f}-{max(loads):.1f} on {d['cpu_count']} cores. Data: `benchmarks/compile_time.json`."
-            "\n\n```bash\n" + d.get("command", "python experiments/benchmarks/bench_compile.py") + "\n```")
+            "\n\n```bash\n" + "\n".join(d.get("commands") or [d.get("command", "")]) + "\n```")
 
 
 def reachability_table(d: dict, policy) -> str:

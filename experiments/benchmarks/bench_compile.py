@@ -205,14 +205,16 @@ def main() -> None:
     models = [m.strip() for m in args.models.split(",")]
     gauss = [int(g) for g in args.gauss.split(",")]
     big = {int(g) for g in args.big_gauss.split(",") if g}
-    old = []
+    old, commands = [], []
     if args.merge and os.path.exists(args.json):
         with open(args.json) as fh:
-            old = json.load(fh)["rows"]
+            previous = json.load(fh)
+        old, commands = previous["rows"], previous.get("commands", [previous.get("command")])
+    command = shlex.join(["python", "experiments/benchmarks/bench_compile.py", *sys.argv[1:]])
     data = dict(integrator="ars443", dtype="float64", n_steps=args.steps, dt=DT, repeats=args.repeats,
                 big_batch=args.big_batch, trees={k: os.path.abspath(v) for k, v in trees.items()},
                 cpu_count=os.cpu_count(), notes=args.notes, load_start=os.getloadavg(), rows=[],
-                command=shlex.join(["python", "experiments/benchmarks/bench_compile.py", *sys.argv[1:]]))
+                commands=[c for c in commands if c] + [command])
     for model in models:
         for g in gauss:
             if g < min_gauss(model):

@@ -200,7 +200,7 @@ class SoftLink:
     ``lax.scan``: a compiled program whose size does not grow with ``n_gauss``
     or the DoFs, for spatial links) or "auto" (scan a link of 2 or more Gauss
     points once the robot has 12 DoFs, or in a robot of at most 6 DoFs once its
-    unrolled pass would be large: a 6-DoF spatial rod from 3 Gauss points;
+    unrolled pass would be large: a 6-DoF spatial rod from 4 Gauss points;
     ``scan.uses_scan``). The results agree to rounding.
 
     ``torsion_constant`` picks the Jt of the torsional stiffness G Jt (see the field).

@@ -26,8 +26,9 @@ from gvsjax.core.model import SoftLink
 # "auto" scans a soft link with at least SCAN_MIN_GAUSS Gauss points when its robot has at least
 # SCAN_MIN_DOFS DoFs, or at most HOIST_MAX_DOFS and the link's unrolled pass would be large:
 # (n_gauss + 1) intervals x the robot's DoFs x the link's active strains >= SCAN_MIN_SIZE (a 6-DoF
-# spatial rod from 3 Gauss points; docs/speed.md)
-SCAN_MIN_DOFS, SCAN_MIN_GAUSS, SCAN_MIN_SIZE = 12, 2, 144
+# spatial rod from 4 Gauss points, where its unrolled pass starts to compile for over 15 s; at 3 it
+# compiles in ~10 s and steps ~1.8x faster than scanned at batch 1; docs/speed.md)
+SCAN_MIN_DOFS, SCAN_MIN_GAUSS, SCAN_MIN_SIZE = 12, 2, 180
 # up to this many DoFs the Magnus steps are computed before the loop, beyond it inside: before the
 # loop a 6-DoF rod's step ran ~2.5x faster at batch 1; at 12 DoFs no gain was measured above the
 # shared machine's noise, so larger robots keep the loop they had (docs/speed.md)
