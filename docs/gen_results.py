@@ -304,7 +304,8 @@ def sim_throughput(root: Path) -> str:
 
 CONTACT_COST_RUNS = """python experiments/benchmarks/bench_contact_cost.py --batches 1024 \\
     --layouts none "0 obstacles" sphere \\
-    "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, all pairs" "48 capsules, all pairs" \\
+    "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, nearest 4" "48 capsules, nearest 4" \\
+    "12 capsules, all pairs" "48 capsules, all pairs" \\
     --check-layouts none sphere "12 capsules" "48 capsules" "48 capsules, all pairs" --json benchmarks/contact_cost.json
 python experiments/benchmarks/bench_contact_cost.py --append --batches 1 64 \\
     --layouts none sphere "12 capsules" "48 capsules" \\
@@ -334,8 +335,10 @@ def contact_cost(root: Path) -> str:
     return (table(["layout"] + [f"batch {b}" for b in batches] + [f"before, batch {max(batches)}"], rows)
             + f"\n\nThe cost per arm-step against the same arm without contact (`Robot.contact` None), "
             f"{d['dtype']}, `{d['integrator']}` at {1e3 * d['dt']:g} ms, median of {d['rounds']} round-robin rounds "
-            f"(load average {load_avg} on 2 cores: a shared machine). \"all pairs\": without the broad phase "
-            "(`Contact.nearest` None; the task's arm runs the law on each piece's 4 nearest bars). \"before\": the "
+            f"(load average {load_avg} on 2 cores at the start). A layout without a suffix is the task's "
+            "arm, which runs the law on at most 8 (piece, bar) pairs in reach (`Contact.pairs`); \"nearest 4\": "
+            "the earlier broad phase, each piece's 4 nearest bars (`Contact.nearest`); \"all pairs\": no broad "
+            "phase. \"before\": the "
             "code before the hand-written derivatives and the broad phase, measured the same way in its own run. "
             "Data: `benchmarks/contact_cost.json`, `benchmarks/contact_cost_before.json`.\n\n"
             + table(["layout", "deepest penetration, before", "now", "runs touching, before", "now",

@@ -263,6 +263,8 @@ def test_vmap_over_plane_heights_and_grad_of_the_rest_height_with_respect_to_the
     (lambda: gv.Contact(rod=gv.Penalty(friction=0.5, static_friction=0.4)), "contact.rod.static_friction"),
     (lambda: gv.Contact(n_points=1), "contact.n_points"),
     (lambda: gv.Contact(nearest=0), "contact.nearest"),
+    (lambda: gv.Contact(pairs=0), "contact.pairs"),
+    (lambda: gv.Contact(nearest=4, pairs=8), "contact.pairs"),
     (lambda: gv.Contact(obstacles=(gv.Sphere(radius=0.0),)), "contact.obstacles[0].radius"),
     (lambda: gv.Contact(obstacles=(gv.Plane(normal=(0.0, 0.0, 0.0)),)), "contact.obstacles[0].normal"),
     (lambda: gv.Contact(obstacles=(gv.Capsule(start=(0.0, 0.0, 0.0), end=(0.0, 0.0, 0.0)),)), "obstacles[0].end"),

@@ -139,3 +139,36 @@ def test_the_broad_phase_is_exact_while_few_obstacles_are_in_reach_and_drops_the
     np.testing.assert_array_equal(one[2], full[2])  # the gaps are still over every bar
     lost = np.abs(np.asarray(one[1] - full[1])).max(axis=-1)
     assert lost[touching <= 1].max() <= 1e-9 and lost[touching == 2].min() > 0.0
+
+
+def test_the_rod_wide_broad_phase_is_exact_while_few_pairs_are_in_reach_and_drops_the_last_beyond():
+    """``Contact.pairs``: the law on at most k (piece, obstacle) pairs in reach equals the law on all
+    of them when no more than k pairs are in reach, gaps included, under jit, vmap and grad; with
+    fewer picks, what is lost is the force of the last pairs in reach along the rod."""
+    p, t, r, lo, hi = pieces(n_c=60)
+    R = jnp.asarray(np.linalg.qr(np.random.default_rng(4).normal(size=(60, 3, 3)))[0])
+    R = R.at[:, :, 0].set(t)
+    eta = jnp.asarray(np.random.default_rng(5).normal(size=(60, 6)))
+    bars = tuple(gv.Capsule((x, -0.3, z), (x, 0.3, z), 0.03) for x in (-0.15, 0.0, 0.15) for z in (-0.15, 0.0, 0.15))
+    pen = contact.Penalty(stiffness=1e6, damping=1e3, smoothing=1e-3, friction=0.3)
+    full = contact.law(p, R, eta, r, lo, hi, bars, pen, 0.0)
+    gaps = np.stack([np.asarray(contact.law(p, R, eta, r, lo, hi, (b,), pen, 0.0)[2]) for b in bars])
+    in_reach = int(np.sum(gaps < pen.smoothing))
+    assert 5 < in_reach < 60  # many pairs, far fewer than the 540 of the pieces and bars
+    law = jax.jit(lambda p, k: contact.law(p, R, eta, r, lo, hi, bars, pen, 0.0, pairs=k), static_argnums=1)
+    for k in (in_reach, in_reach + 7):
+        for a, b in zip(law(p, k), full):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)
+    few = law(p, in_reach - 2)
+    np.testing.assert_allclose(few[2], full[2], rtol=0, atol=1e-15)  # the gaps are still over every pair
+    lost = np.abs(np.asarray(few[1] - full[1])).max(axis=-1)
+    piece_of_pair = np.nonzero(gaps.T < pen.smoothing)[0]  # in reach, in the rod's order (piece, then obstacle)
+    assert set(np.nonzero(lost > 1e-9)[0]) == set(piece_of_pair[-2:])  # the last two pairs' pieces, no other
+    # vmap over shifted rods and the energy's gradient against the full law's
+    shifts = jnp.asarray([[0.0, 0.0, 0.0], [0.01, 0.0, -0.02]])
+    batched = jax.vmap(lambda d: law(p + d, in_reach + 7))(shifts)
+    np.testing.assert_allclose(batched[1][1], contact.law(p + shifts[1], R, eta, r, lo, hi, bars, pen, 0.0)[1],
+                               rtol=1e-12, atol=1e-9)
+    g_pairs = jax.grad(lambda p: jnp.sum(law(p, in_reach + 7)[3]))(p)
+    g_full = jax.grad(lambda p: jnp.sum(contact.law(p, R, eta, r, lo, hi, bars, pen, 0.0)[3]))(p)
+    np.testing.assert_allclose(g_pairs, g_full, rtol=1e-10, atol=1e-9)

@@ -7,7 +7,8 @@ Layouts: no contact at all (``Robot.contact`` None, the reference), the contact
 with no obstacles (the samples' kinematics and J^T w alone), one sphere in
 reach (r 0.1 m at (0.35, 0, 0.75)), and 1, 4, 12 or 48 capsules: the first of the
 cage's bars (``reach_obstacles.layouts.cage``: twelve 3 cm bars) and the cage turned
-by 90, 180 and 270 degrees about the arm (48 bars all round it). Cost per arm-step
+by 90, 180 and 270 degrees about the arm (48 bars all round it), with the task's broad
+phase (``Contact.pairs``) or another (", all pairs", ", K pairs", ", nearest K"). Cost per arm-step
 (us) is the call's time over batch x steps; every layout of a batch is compiled
 first and then timed in ``--rounds`` round-robin rounds (A B C ... A B C ...), so the
 ratios to the contact-free step are taken within one run under the same load; each
@@ -53,18 +54,26 @@ def bars(n: int) -> tuple:
 
 def layouts(names: list[str]) -> dict[str, tuple | None]:
     table: dict[str, tuple | None] = {"none": None, "0 obstacles": (), "sphere": (SPHERE,)}
-    for n in (1, 4, 12, 48):
-        table[f"{n} capsules"] = table[f"{n} capsules, all pairs"] = bars(n)
-    return {k: table[k] for k in names}
+    # "N capsules", "N capsules, all pairs", "N capsules, K pairs": the first N bars
+    return {k: table[k] if k in table else bars(int(k.split(" capsules")[0])) for k in names}
 
 
 def robot(name: str, obstacles):
-    """The task's arm with ``obstacles`` (its broad phase, ``Contact.nearest``, off for "all pairs")."""
+    """The task's arm with ``obstacles`` and its broad phase (``Contact.pairs``), or another:
+    "N capsules, all pairs" none, "N capsules, K pairs" ``pairs=K``, "N capsules, nearest K"
+    ``nearest=K`` (each piece's K nearest)."""
     arm = contact_arm()
     if obstacles is None:
         return arm.replace(contact=None)
     contact = arm.contact.replace(obstacles=obstacles)
-    return arm.replace(contact=contact.replace(nearest=None) if name.endswith("all pairs") else contact)
+    variant = name.split(", ")[-1] if ", " in name else ""
+    if variant == "all pairs":
+        contact = contact.replace(nearest=None, pairs=None)
+    elif variant.endswith(" pairs"):
+        contact = contact.replace(nearest=None, pairs=int(variant.split()[0]))
+    elif variant.startswith("nearest "):
+        contact = contact.replace(nearest=int(variant.split()[1]), pairs=None)
+    return arm.replace(contact=contact)
 
 
 def runner(name: str, obstacles, n_steps: int, dtype, save: bool = False):
@@ -101,8 +110,9 @@ def figure(path: str, out: str) -> None:
                      if r["batch"] == batch and r["layout"].endswith("capsules" + suffix))
         return [x for x, _ in pts], [y for _, y in pts]
 
-    a.plot(*series(d, "", top), "o-", label="now (the task's arm: 4 nearest bars per piece)")
-    a.plot(*series(d, ", all pairs", top), "s--", label="now, all pairs")
+    a.plot(*series(d, "", top), "o-", label="now (the task's arm: at most 8 pairs in reach)")
+    a.plot(*series(d, ", nearest 4", top), "^-.", label="each piece's 4 nearest")
+    a.plot(*series(d, ", all pairs", top), "s--", label="all pairs")
     if before:
         a.plot(*series(before, "", top), "x:", color="grey", label="before")
     for name, style in (("sphere", "C3"), ("0 obstacles", "C7")):

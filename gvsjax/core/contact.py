@@ -81,7 +81,11 @@ class Contact:
     broad phase: each rod piece runs the law against only its ``nearest`` nearest static spheres
     and capsules (by exact gap; the gaps reported are still over all). Exact while no piece is
     within the smoothing length of more than that many at once (a piece at a cage's corner
-    touches three bars); cheaper when there are many more obstacles than that.
+    touches three bars); cheaper when there are many more obstacles than that. pairs (static):
+    None, or the other broad phase: the law runs on at most ``pairs`` (piece, obstacle) pairs of
+    each soft link, those within the smoothing length of touching, the first along the link. Exact
+    while no more pairs than that touch at once (beyond, those farthest along the link are
+    dropped); cheaper than ``nearest`` when few pieces touch at a time. Set one of the two.
     """
 
     obstacles: tuple = ()
@@ -90,6 +94,7 @@ class Contact:
     sites: tuple = ()
     n_points: int = struct.field(pytree_node=False, default=21)
     nearest: int | None = struct.field(pytree_node=False, default=None)
+    pairs: int | None = struct.field(pytree_node=False, default=None)
 
     def validate(self, robot: Robot) -> None:
         """``check_robot``'s hook: ``check`` (a bad value raises, naming it)."""
@@ -186,7 +191,8 @@ def _pair(obs, p, tangent, omega, vel, radius, lo, hi, pen: Penalty, t):
     return f_el + f, m_el + jnp.cross(arm, f), g, energy
 
 
-def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t, nearest: int | None = None):
+def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t, nearest: int | None = None,
+        pairs: int | None = None):
     """The contact wrench on one rod piece or site from every obstacle.
 
     p (..., 3) world centre, R (..., 3, 3) world rotation (column 0: the tangent), eta
@@ -194,7 +200,7 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t, nearest: int | No
     the tangent (m; None for a site: a ball, forces per site). Returns (body wrench (..., 6):
     moment N m, force N, in the section's frame; world force (..., 3) N; the smallest gap
     over the obstacles (...), m, negative when penetrating; the penalty's energy (...), J).
-    nearest: ``Contact.nearest`` (pieces only).
+    nearest, pairs: ``Contact.nearest``, ``Contact.pairs`` (pieces only; pairs over the leading axis of p).
     """
     tangent = R[..., :, 0]
     omega, vel = jnp.einsum("...ij,...j->...i", R, eta[..., :3]), jnp.einsum("...ij,...j->...i", R, eta[..., 3:])
@@ -204,7 +210,7 @@ def law(p, R, eta, radius, lo, hi, obstacles, pen: Penalty, t, nearest: int | No
     energy = jnp.zeros(p.shape[:-1], p.dtype)
     for obs, stacked in _groups(obstacles):
         if stacked and lo is not None:
-            f3, m3, g, e = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen, nearest)
+            f3, m3, g, e = stacked_law(obs, p, tangent, omega, vel, radius, lo, hi, pen, nearest, pairs)
             force, moment = force + jnp.stack(f3, -1), moment + jnp.stack(m3, -1)
             gap_min, energy = jnp.minimum(gap_min, g), energy + e
             continue
@@ -242,7 +248,7 @@ def evaluate(robot: Robot, points: list[Point], q, qd, t) -> tuple[list, list, l
         lo = -half * jnp.asarray(np.arange(n_c) > 0, dtype=p.dtype)
         hi = half * jnp.asarray(np.arange(n_c) < n_c - 1, dtype=p.dtype)
         w, f, g, e = law(p, R, eta, samples.radius(link, Xc, p.dtype), lo, hi, contact.obstacles, contact.rod, t,
-                         contact.nearest)
+                         contact.nearest, contact.pairs)
         terms = pull(tuple(w[:, k] for k in range(6)))
         live = [j for j, x in enumerate(terms) if not lie.is_zero(x)]
         if live:  # one reduction for every column: XLA would repeat the columns' shared work in each
@@ -328,6 +334,9 @@ def check(robot: Robot) -> None:
     integer("contact.n_points", c.n_points, low=2)
     if c.nearest is not None:
         integer("contact.nearest", c.nearest, low=1)
+    if c.pairs is not None:
+        integer("contact.pairs", c.pairs, low=1)
+        require(c.nearest is None, "contact.pairs", c.pairs, "None while contact.nearest is set (one broad phase)")
     for name, pen in (("contact.rod", c.rod), ("contact.site", c.site)):
         require(isinstance(pen, Penalty), name, type(pen).__name__, "a Penalty")
         positive(f"{name}.stiffness", pen.stiffness)

@@ -50,9 +50,10 @@ POSTS_HALF_WIDTH = 0.3  # m, half the bars' length along y: the planar arm stays
 # soft enough for 16 ars443 steps per 0.1 s (the contact is explicit; experiments/studies/reach_obstacles_steps.py)
 PENALTY = Penalty(stiffness=3e5, damping=1e3)
 N_POINTS = 11  # contact samples along the arm, 10 cm apart (straight pieces: 1.25 mm off per 1/m of curvature)
-# the law runs against each piece's 4 nearest bars (Contact.nearest): a piece touches at most three at once
-# (at a cage's corner), so this is exact, and 12 or more bars cost about as much as 4
-NEAREST = 4
+# the law runs on at most 8 (piece, bar) pairs in reach along the arm (Contact.pairs): pressed into the
+# cage with the full tension the arm touches at most 4 at once (docs/contact.md), so this is exact, and
+# twelve bars cost about what one sphere does
+PAIRS = 8
 
 
 def cage(centre=CAGE_TARGET, half: float = CAGE_HALF, radius: float = CAGE_RADIUS) -> dict[str, np.ndarray]:
@@ -101,4 +102,4 @@ def capsules(start: Any, end: Any, radius: Any) -> tuple[Capsule, ...]:
 def contact_arm(**overrides: Any):
     """``gv.soft_arm`` with the task's contact law and samples (obstacles are set per episode)."""
     return dataclasses.replace(soft_arm(**overrides), contact=Contact(obstacles=(), rod=PENALTY, n_points=N_POINTS,
-                                                                        nearest=NEAREST))
+                                                                        pairs=PAIRS))
