@@ -136,6 +136,32 @@ def test_reachable_targets_stay_near_held_tips_under_jit_and_vmap(env):
     box = _walks(P.replace(targets="box"), 64)[0].reshape(-1, 3)
     held = np.asarray(jax.vmap(t3.inside, in_axes=(0, None))(jnp.asarray(box), P))
     assert held.mean() < 0.5  # the published box is mostly beyond the arm's static reach
+    # the grid's cells (what a step asks) give the same walks, to the bit, as asking every row
+    brute = _walks(P.replace(reach_cells=None), 64)
+    np.testing.assert_array_equal(brute[0], p)
+    np.testing.assert_array_equal(brute[1], v)
+
+
+def test_the_cells_answer_as_every_row_does_near_the_reach_boundary():
+    """``holdable.within_cells`` against the brute-force distance, under jit and vmap: box points,
+    and points at the reach radius from a row, a hair inside and outside it."""
+    from gvsjax.tasks import holdable
+
+    rng = np.random.default_rng(3)
+    table = rng.uniform([-0.5, -0.5, 0.2], [0.5, 0.5, 1.0], (500, 3))
+    low, high, r = (-0.6, -0.6, 0.3), (0.6, 0.6, 0.9), 0.03
+    cells = holdable.cell_rows(table, low, high, r)
+    assert cells.rows.shape[:3] == (15, 15, 8) and cells.rows.shape[3] < 60  # a few rows per cell, not 500
+    u = rng.normal(size=(2000, 3))
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    rim = table[rng.integers(0, 500, 2000)] + r * u * rng.choice([1 - 1e-9, 1 + 1e-9], (2000, 1))
+    points = np.concatenate([rng.uniform(low, high, (4000, 3)), rim])
+    points = points[np.all((points >= low) & (points <= high), axis=1)]
+    brute = np.sqrt(np.min(np.sum((points[:, None] - table[None]) ** 2, -1), axis=1)) <= r
+    fast = jax.jit(jax.vmap(holdable.within_cells, in_axes=(0, None, None)))(jnp.asarray(points), jnp.asarray(table),
+                                                                            cells)
+    assert 0.05 < brute.mean() < 0.95
+    np.testing.assert_array_equal(np.asarray(fast), brute)
 
 
 def _shipped_rows_match_the_statics(actuation: str) -> None:
@@ -187,6 +213,8 @@ def test_bad_target_set_is_refused_before_compiling(env):
     for bad in (0.0, -0.01, float("nan")):
         with pytest.raises(ValueError, match=r"Track3DParams.reach_radius=.* expected a finite number > 0"):
             env.reset(key, P.replace(reach_radius=bad))
+    with pytest.raises(ValueError, match=r"Track3DParams.reach_cells=.*built for reach_radius=0.03"):
+        env.reset(key, P.replace(reach_radius=0.05))  # the cells of another radius would miss rows
     with pytest.raises(ValueError, match=r"train_targets='boxes' is invalid for task='track3d'; choose one of "
                                          r"\['reachable', 'box'\]"):
         env.train_params("boxes")

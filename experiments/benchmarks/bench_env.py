@@ -41,7 +41,15 @@ def parse_case(spec: str) -> tuple[str, dict]:
     task, *items = spec.split(":")
     if not all("=" in item for item in items):
         raise SystemExit(f"--task {spec!r}: expected TASK:name=value:name=value")
-    return task, {name: parse(value) for name, value in (item.split("=", 1) for item in items)}
+    return task, {name: _value(value) for name, value in (item.split("=", 1) for item in items)}
+
+
+def _value(text: str):
+    """A number or tuple as ``train_variant`` reads it, else the string (e.g. ``targets=box``)."""
+    try:
+        return parse(text)
+    except ValueError:
+        return text
 
 
 def prepare(spec: str, batch: int, steps: int):

@@ -20,6 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from flax import struct
+
 from gvsjax.core.kinematics import tip_frame
 from gvsjax.core.statics import equilibrium
 from gvsjax.core.validation import integer
@@ -77,6 +79,54 @@ def _solve(arm: arm3d.ArmParams, action: jax.Array) -> dict[str, jax.Array]:
     return {"q": eq.q, "position": p, "axis": R[:, 0], "converged": eq.converged}
 
 
+CELL = 0.08  # m, the side of the grid's cells: a few tens of candidate rows each on the 3D arm's tables
+
+
+@struct.dataclass
+class Cells:
+    """Rows of a table near each cell of a grid over a box (``cell_rows``): ``rows`` (nx, ny, nz, m)
+    int32 row indices (-1 pads), and the box [``low``, ``high``] (m), ``radius`` (m) and table
+    size they were built for (checked against their params where concrete)."""
+
+    rows: Any
+    low: Any
+    high: Any
+    radius: Any
+    table_size: int = struct.field(pytree_node=False, default=0)
+
+
+def cell_rows(table: Any, low: Any, high: Any, radius: float, cell: float = CELL) -> Cells:
+    """A grid over the box [low, high] (m) of about ``cell`` (m) per side and, for each cell, the
+    rows of ``table`` (p, 3) within ``radius`` (m) of it: ``within_cells`` then answers "within
+    radius of a row?" reading a cell's few rows instead of all p."""
+    table, low, high = (np.asarray(x, float) for x in (table, low, high))
+    n = np.maximum(np.ceil((high - low) / cell - 1e-9).astype(int), 1)
+    size = (high - low) / n
+    lists = []
+    for idx in itertools.product(*(range(k) for k in n)):
+        lo = low + size * np.asarray(idx)
+        d = np.linalg.norm(table - np.clip(table, lo, lo + size), axis=-1)  # to the closed cell
+        lists.append(np.nonzero(d <= radius)[0])
+    m = max(1, max(len(x) for x in lists))
+    out = np.full((len(lists), m), -1, np.int32)
+    for i, rows in enumerate(lists):
+        out[i, :len(rows)] = rows
+    return Cells(rows=jnp.asarray(out.reshape(*n, m)), low=jnp.asarray(low), high=jnp.asarray(high),
+                 radius=float(radius), table_size=len(table))
+
+
+def within_cells(point: jax.Array, table: jax.Array, cells: Cells) -> jax.Array:
+    """() bool: ``distance_to(point, table) <= cells.radius`` for a ``point`` (3,) in the cells'
+    box, read from its cell's rows. Exact: a row within the radius of the point is within it of the
+    point's cell. jit/vmap-able."""
+    low, high = jnp.asarray(cells.low, point.dtype), jnp.asarray(cells.high, point.dtype)
+    n = jnp.asarray(cells.rows.shape[:3])
+    i = jnp.clip(jnp.floor((point - low) / ((high - low) / n)).astype(jnp.int32), 0, n - 1)
+    cand = cells.rows[i[0], i[1], i[2]]
+    d2 = jnp.sum((table[jnp.maximum(cand, 0)] - point) ** 2, axis=-1)
+    return jnp.sqrt(jnp.min(jnp.where(cand >= 0, d2, jnp.inf))) <= cells.radius  # as distance_to, to the bit
+
+
 def distance_to(point: jax.Array, table: jax.Array) -> jax.Array:
     """() the distance (m) from ``point`` (3,) to the nearest row of ``table`` (p, 3); jit/vmap-able."""
     return jnp.sqrt(jnp.min(jnp.sum((table - point) ** 2, axis=-1)))
@@ -119,4 +169,5 @@ def pose_reachable(points: Any, axes: Any, table: Any, table_axes: Any, radius: 
     return np.asarray(jax.lax.map(block, tuple(blocks))).reshape(-1)[:m]
 
 
-__all__ = ["LOAD_STEPS", "sample_actions", "equilibrium_poses", "distance_to", "nearest", "pose_reachable"]
+__all__ = ["LOAD_STEPS", "CELL", "Cells", "sample_actions", "equilibrium_poses", "cell_rows", "within_cells", "distance_to",
+           "nearest", "pose_reachable"]

@@ -38,6 +38,9 @@ class Track3DParams:
     holdable: Any = None  # (p, 3) m, static tips of the arm near the box (targets="reachable")
     starts: Any = None  # (s, 3) m, uniform box points within reach_radius of holdable: where a target starts
     reach_radius: float = 0.03  # m, how far from a holdable tip a reachable target may lie
+    # holdable's rows near each cell of a grid over the box (holdable.cell_rows): the target's step
+    # asks only its cell's; None asks every row
+    reach_cells: Any = None
 
     def __post_init__(self) -> None:
         # a static field: its value survives pytree rebuilds, so it is checked whenever params are made

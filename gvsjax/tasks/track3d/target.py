@@ -52,6 +52,14 @@ def check(params: Track3DParams) -> None:
     if concrete(r):
         require(np.ndim(r) == 0 and bool(np.isfinite(r) and r > 0), "Track3DParams.reach_radius", r,
                 "a finite number > 0 (m)")
+    cells = params.reach_cells
+    if cells is not None and concrete((r, cells.radius, cells.low, cells.high, params.holdable)):
+        built = (float(cells.radius) == float(r) and cells.table_size == np.shape(params.holdable)[0]
+                 and np.array_equal(np.asarray(cells.low), np.asarray(params.box_low, float))
+                 and np.array_equal(np.asarray(cells.high), np.asarray(params.box_high, float)))
+        require(built, "Track3DParams.reach_cells", f"built for reach_radius={float(cells.radius)}, "
+                f"{cells.table_size} holdable rows", "cells of this holdable, box and reach_radius "
+                "(holdable.cell_rows), or None")
 
 
 def inside(point: jax.Array, params: Track3DParams) -> jax.Array:
@@ -59,7 +67,9 @@ def inside(point: jax.Array, params: Track3DParams) -> jax.Array:
     ``reach_radius`` of a holdable tip)."""
     low, high = jnp.asarray(params.box_low), jnp.asarray(params.box_high)
     ok = jnp.all((point >= low) & (point <= high))
-    if params.targets == "reachable":
+    if params.targets == "reachable" and params.reach_cells is not None:
+        ok = ok & holdable.within_cells(point, jnp.asarray(params.holdable), params.reach_cells)
+    elif params.targets == "reachable":
         ok = ok & (holdable.distance_to(point, jnp.asarray(params.holdable)) <= params.reach_radius)
     return ok
 
@@ -128,7 +138,7 @@ def make_params(actuation: str = "tendon", targets: str = "reachable", **overrid
     points (the default arms' tables are shipped, ``tables.default_tips``; another ``arm``'s is
     computed, ~1 min). ``overrides``: other fields (an ``arm`` sets the actuation)."""
     require(targets in TARGET_SETS, "targets", targets, f"one of {list(TARGET_SETS)}")
-    allowed = set(Track3DParams.__dataclass_fields__) - {"targets", "holdable", "starts"}
+    allowed = set(Track3DParams.__dataclass_fields__) - {"targets", "holdable", "starts", "reach_cells"}
     unknown = sorted(set(overrides) - allowed)
     if unknown:
         raise ValueError(f"unknown track3d parameter(s) {unknown}; valid: {sorted(allowed)}")
@@ -140,5 +150,7 @@ def make_params(actuation: str = "tendon", targets: str = "reachable", **overrid
     near = tips[box_distance(tips, params) <= params.reach_radius]
     params = dataclasses.replace(params, targets="reachable", holdable=jnp.asarray(near))
     params = dataclasses.replace(params, starts=jnp.asarray(start_points(params)))
+    params = dataclasses.replace(params, reach_cells=holdable.cell_rows(near, params.box_low, params.box_high,
+                                                                        params.reach_radius))
     check(params)
     return params
