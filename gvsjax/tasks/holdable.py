@@ -19,7 +19,6 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-
 from flax import struct
 
 from gvsjax.core.kinematics import tip_frame
@@ -169,5 +168,5 @@ def pose_reachable(points: Any, axes: Any, table: Any, table_axes: Any, radius: 
     return np.asarray(jax.lax.map(block, tuple(blocks))).reshape(-1)[:m]
 
 
-__all__ = ["LOAD_STEPS", "CELL", "Cells", "sample_actions", "equilibrium_poses", "cell_rows", "within_cells", "distance_to",
-           "nearest", "pose_reachable"]
+__all__ = ["LOAD_STEPS", "CELL", "Cells", "sample_actions", "equilibrium_poses", "cell_rows", "within_cells",
+           "distance_to", "nearest", "pose_reachable"]
