@@ -304,8 +304,8 @@ def sim_throughput(root: Path) -> str:
 
 CONTACT_COST_RUNS = """python experiments/benchmarks/bench_contact_cost.py --batches 1024 \\
     --layouts none "0 obstacles" sphere \\
-    "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, nearest 4" "48 capsules, nearest 4" \\
-    "12 capsules, all pairs" "48 capsules, all pairs" \\
+    "1 capsules" "4 capsules" "12 capsules" "48 capsules" "12 capsules, 8 pairs" \\
+    "12 capsules, nearest 4" "48 capsules, nearest 4" "12 capsules, all pairs" "48 capsules, all pairs" \\
     --check-layouts none sphere "12 capsules" "48 capsules" "48 capsules, all pairs" --json benchmarks/contact_cost.json
 python experiments/benchmarks/bench_contact_cost.py --append --batches 1 64 \\
     --layouts none sphere "12 capsules" "48 capsules" \\
@@ -336,7 +336,8 @@ def contact_cost(root: Path) -> str:
             + f"\n\nThe cost per arm-step against the same arm without contact (`Robot.contact` None), "
             f"{d['dtype']}, `{d['integrator']}` at {1e3 * d['dt']:g} ms, median of {d['rounds']} round-robin rounds "
             f"(load average {load_avg} on 2 cores at the start). A layout without a suffix is the task's "
-            "arm, which runs the law on at most 8 (piece, bar) pairs in reach (`Contact.pairs`); \"nearest 4\": "
+            "arm, which runs the law on at most 16 (piece, bar) pairs in reach (`Contact.pairs`); \"8 pairs\": "
+            "the same with 8; \"nearest 4\": "
             "the earlier broad phase, each piece's 4 nearest bars (`Contact.nearest`); \"all pairs\": no broad "
             "phase. \"before\": the "
             "code before the hand-written derivatives and the broad phase, measured the same way in its own run. "

@@ -110,7 +110,7 @@ def figure(path: str, out: str) -> None:
                      if r["batch"] == batch and r["layout"].endswith("capsules" + suffix))
         return [x for x, _ in pts], [y for _, y in pts]
 
-    a.plot(*series(d, "", top), "o-", label="now (the task's arm: at most 8 pairs in reach)")
+    a.plot(*series(d, "", top), "o-", label="now (the task's arm: at most 16 pairs in reach)")
     a.plot(*series(d, ", nearest 4", top), "^-.", label="each piece's 4 nearest")
     a.plot(*series(d, ", all pairs", top), "s--", label="all pairs")
     if before:
