@@ -10,24 +10,26 @@ import numpy as np
 import pytest
 
 from gvsjax.core import contact, dynamics
-from gvsjax.core.kinematics import forward, rows
+from gvsjax.core.kinematics import forward
 
 
 def contact_force(robot, q, qd=None):
-    """The generalized contact force (n,) at q (qd: zeros)."""
+    """The generalized contact force (n,) at q (qd: zeros), from the recursion's points as the
+    dynamics passes them (a scanned link's one stacked point, an unrolled link's points)."""
     n = robot.n_dofs
     qs = [q[i] for i in range(n)]
     qds = [jnp.zeros_like(q[i]) for i in range(n)] if qd is None else [qd[i] for i in range(n)]
-    F = contact.evaluate(robot, rows(forward(robot, qs, qds, with_psi=False)), qs, qds, 0.0)[0]
+    F = contact.evaluate(robot, forward(robot, qs, qds, with_psi=False), qs, qds, 0.0)[0]
     return jnp.stack([jnp.broadcast_to(jnp.asarray(f, q.dtype), ()) for f in F])
 
 
-def pressed_rod(n_points=11, tilt=0.01, depth=-0.003, obstacle=None):
+def pressed_rod(n_points=11, tilt=0.01, depth=-0.003, obstacle=None, recursion="auto"):
     """A clamped rod along +x (no gravity, quadratic curvature) on a plane ``depth`` (m) into its
     underside at the base, rising by ``tilt`` (rad) along it: at the defaults the rod touches from
     x = 0.3 m on, so one piece overlaps in part."""
     link = gv.SoftLink(length=1.0, radius=0.02, material=gv.Material(1e9, 1000.0, 0.0, 0.5), joint=gv.Joint("fixed"),
-                       basis=gv.StrainBasis(orders=(-1, -1, 2, -1, -1, -1), kind="legendre"), n_gauss=4)
+                       basis=gv.StrainBasis(orders=(-1, -1, 2, -1, -1, -1), kind="legendre"), n_gauss=4,
+                       recursion=recursion)
     plane = gv.Plane(point=(0.0, -0.02 + depth, 0.0), normal=(-np.sin(tilt), np.cos(tilt), 0.0))
     c = gv.Contact(obstacles=(obstacle or plane,), rod=gv.Penalty(stiffness=1e7, damping=0.0), n_points=n_points)
     return gv.Robot(links=(link,), gravity=0.0, contact=c)
@@ -35,10 +37,12 @@ def pressed_rod(n_points=11, tilt=0.01, depth=-0.003, obstacle=None):
 
 @pytest.mark.parametrize("obstacle", [None, gv.Sphere(centre=(0.64, -0.118, 0.0), radius=0.1),
                                       gv.Capsule(start=(0.55, -0.05, -0.3), end=(0.62, -0.045, 0.3), radius=0.03)])
-def test_contact_stiffness_is_symmetric_and_the_force_is_minus_the_energy_gradient(obstacle):
+@pytest.mark.parametrize("recursion", ["unrolled", "scan"])
+def test_contact_stiffness_is_symmetric_and_the_force_is_minus_the_energy_gradient(obstacle, recursion):
     """K_c = -dF/dq of a rod pressed on a tilted plane (partly overlapping pieces), a ball and an
-    oblique bar: symmetric to rounding, and F = -dE/dq, E the penalty's energy."""
-    robot = pressed_rod(obstacle=obstacle)
+    oblique bar: symmetric to rounding, and F = -dE/dq, E the penalty's energy; the link unrolled
+    (one point per grid point) or scanned (one stacked point)."""
+    robot = pressed_rod(obstacle=obstacle, recursion=recursion)
     q = jnp.array([-0.01, 0.005, -0.002])  # bent down, into the obstacle
     F = contact_force(robot, q)
     K = -jax.jacfwd(lambda x: contact_force(robot, x))(q)

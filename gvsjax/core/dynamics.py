@@ -241,7 +241,7 @@ def mass_and_forces(
             if pt.kind == "soft" and not lie.is_zero(pt.weight):
                 _add_wrench(F, pt, _distributed(robot, pt, t), True, pt.weight)
     if robot.contact is not None:
-        F = [add(f, c) for f, c in zip(F, contact.evaluate(robot, rows(points), q, qd, t)[0])]
+        F = [add(f, c) for f, c in zip(F, contact.evaluate(robot, points, q, qd, t)[0])]
     for site, w in zip(robot.wrenches, wrench):
         _add_wrench(F, point_at(points, site.link, site.X, n_links), w, site.local)
     for load in robot.loads:
