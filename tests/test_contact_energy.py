@@ -56,6 +56,28 @@ def test_contact_stiffness_is_symmetric_and_the_force_is_minus_the_energy_gradie
     np.testing.assert_allclose(-fd, np.asarray(F), rtol=1e-6, atol=1e-6 * float(jnp.max(jnp.abs(F))))
 
 
+def test_samples_on_the_grid_points_give_the_energy_gradient_on_a_multi_link_arm():
+    """The benchmark tasks' arm (seven constant-curvature links, one Gauss point each, so its three
+    samples per link are the link's grid points and take no Magnus step) bent into a capsule:
+    F = -dE/dq by central differences of the energy, and K_c symmetric."""
+    arm = gv.curvature_arm()
+    q = jnp.asarray(np.random.default_rng(0).uniform(-0.5, 0.5, arm.n_dofs))
+    R, p = (np.asarray(x) for x in gv.frames(arm, q))
+    i = len(p) // 2  # a bar across the arm's middle, oblique, 1 cm into it
+    t, n = R[i, :, 0], R[i, :, 1]
+    centre, along = p[i] + 0.07 * n, np.cross(t, n) + 0.3 * t
+    bar = gv.Capsule(start=tuple(centre - 0.4 * along), end=tuple(centre + 0.4 * along), radius=0.03)
+    robot = arm.replace(contact=gv.Contact(obstacles=(bar,), rod=gv.Penalty(stiffness=3e5, damping=0.0), n_points=3))
+    F = contact_force(robot, q)
+    assert float(jnp.max(jnp.abs(F))) > 1.0
+    K = -jax.jacfwd(lambda x: contact_force(robot, x))(q)
+    assert float(jnp.max(jnp.abs(K - K.T))) <= 1e-12 * float(jnp.max(jnp.abs(K)))
+    E = jax.jit(lambda x: contact.energy(robot, x))
+    h = 1e-7
+    fd = np.array([(float(E(q + h * e)) - float(E(q - h * e))) / (2 * h) for e in np.eye(robot.n_dofs)])
+    np.testing.assert_allclose(-fd, np.asarray(F), rtol=1e-6, atol=1e-6 * float(jnp.max(jnp.abs(F))))
+
+
 def test_gradients_are_finite_and_smooth_at_a_rod_exactly_parallel_to_the_plane():
     """A straight rod at slope exactly 0 to the plane (and 1e-9 either side): the stiffness is
     finite and continuous through 0 (the energy is even in the slope about the middle)."""

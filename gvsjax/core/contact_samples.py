@@ -58,6 +58,8 @@ def soft_samples(robot: Robot, li: int, link: SoftLink, points: list[Point], q, 
         p = tuple(stack([pt.p[a] for pt in pick], n_c) for a in range(3))
         eta = tuple(stack([pt.eta[a] for pt in pick], n_c) for a in range(6))
         J = [tuple(stack([pt.J[k][a] for pt in pick], n_c) for a in range(6)) for k in range(len(pick[0].J))]
+    if not np.any(dX):  # every sample on a grid point (a one-Gauss-point link's ends and middle): no step
+        return R, p, eta, lambda w: [lie.dot(col, w) for col in J]
     j0, s0, end = robot.dof_slices()[li]
     qs, qds = q[s0:end], qd[s0:end]
     dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *qds, *p)))  # float32 runs stay float32
