@@ -50,6 +50,13 @@ def curve(run: Path) -> list[dict]:
             "entropy", "approx_kl", "episodes_completed")
     with open(run / "metrics.csv") as f:
         rows = [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")} for row in csv.DictReader(f)]
+    offset, last = 0.0, 0.0
+    for r in rows:  # a resumed run's clock restarts: carry the wall time on across the legs
+        if "wall_s" in r:
+            if r["wall_s"] < last:
+                offset += last
+            last = r["wall_s"]
+            r["wall_s"] += offset
     # a SAC run has a row per iteration: ~500 of the rows without a finished episode, and the others
     # merged until each holds num_envs episodes
     stride = max(1, len(rows) // 500)
@@ -57,6 +64,11 @@ def curve(run: Path) -> list[dict]:
     ended = smoothed([r for r in rows if "episode_benchmark_return" in r], num_envs)
     return sorted([r for i, r in enumerate(rows) if i % stride == 0 and "episode_benchmark_return" not in r] + ended,
                   key=lambda r: r["update"])
+
+
+def train_seconds(d: dict) -> float:
+    """Training wall time over every leg of a run (a resumed run's ``timing`` is its last leg's)."""
+    return d["timing"]["train_s"] + sum(leg["train_s"] for leg in d.get("earlier_legs", []))
 
 
 def env_steps(d: dict) -> int:
@@ -84,7 +96,7 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
              "| discounted return | evaluation |", "|---|---|---|---|---|---|---|---|---|---|"]
     for path in sorted(folder.glob("*.json")):
         d = json.loads(path.read_text())
-        e, t = d["eval"], d["timing"]
+        e = d["eval"]
         steps = env_steps(d)
         command = d["command"].split(" -- ")
         overrides = command[1] if len(command) > 1 else ""
@@ -93,10 +105,11 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
         physical.update({f"{k} median": v["median"] for k, v in e.items() if isinstance(v, dict) and "median" in v
                          and not k.startswith(("discounted", "return"))})
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
-        load = "/".join(f"{x:.1f}" for x in d.get("load_average", [])) or "?"
+        legs = [*d.get("earlier_legs", []), d]
+        load = ", ".join("/".join(f"{x:.1f}" for x in leg.get("load_average", [])) or "?" for leg in legs)
         algo = d["config"].get("algo") or "ppo"
         lines.append(f"| {d['task']} | {algo} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
-                     f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {t['train_s']:.0f} ({load}) | "
+                     f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {train_seconds(d):.0f} ({load}) | "
                      f"{e['n_episodes']} | "
                      f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
     return "\n".join(lines)
@@ -122,11 +135,11 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
         env = make(task)
         for d in (d for d in runs if d["task"] == task):
             points = smoothed([c for c in d["curve"] if "episode_benchmark_return" in c], d["config"]["num_envs"])
-            label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}"
+            label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}, {env_steps(d) / 1e6:.2g}M"
             final = d["eval"]["discounted_return_average"]["mean"]
             total = env_steps(d)
             for ax, x_of, end in ((row[0], lambda c: c["update"], total),
-                                  (row[1], lambda c: c["wall_s"] / 60, d["timing"]["train_s"] / 60)):
+                                  (row[1], lambda c: c["wall_s"] / 60, train_seconds(d) / 60)):
                 if points:
                     x = np.array([x_of(c) for c in points], float)
                     if ax is row[0]:
@@ -167,6 +180,12 @@ def main(argv: list[str]) -> int:
     load_before = os.getloadavg()[1]
     tag = f"{args.task}_{args.name}_e{args.episodes}_s{args.seed}"
     run = Path(args.runs) / tag
+    out = ROOT / "benchmarks" / "curvature_ppo_study" / f"{tag}.json"
+    earlier: list[dict] = []
+    if args.resume and (run / "timing.json").exists():  # the legs before this one, for the total wall time
+        kept = json.loads(out.read_text()) if out.exists() else {}
+        earlier = [*kept.get("earlier_legs", []),
+                   {**json.loads((run / "timing.json").read_text()), "load_average": kept.get("load_average", [])}]
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
                               f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false",
                               *(["resume=true"] if args.resume else []), *overrides])
@@ -181,8 +200,8 @@ def main(argv: list[str]) -> int:
         "curve": curve(run),
         # 5-minute load averages on a 2-core machine: > 2 means the wall times were shared
         "load_average": [load_before, os.getloadavg()[1]],
+        **({"earlier_legs": earlier} if earlier else {}),
     }
-    out = ROOT / "benchmarks" / "curvature_ppo_study" / f"{tag}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"wrote {out}")
