@@ -59,7 +59,7 @@ def test_contact_stiffness_is_symmetric_and_the_force_is_minus_the_energy_gradie
 def test_samples_on_the_grid_points_give_the_energy_gradient_on_a_multi_link_arm():
     """The benchmark tasks' arm (seven constant-curvature links, one Gauss point each, so its three
     samples per link are the link's grid points and take no Magnus step) bent into a capsule:
-    F = -dE/dq by central differences of the energy, and K_c symmetric."""
+    F = -dE/dq by central differences of the energy."""
     arm = gv.curvature_arm()
     q = jnp.asarray(np.random.default_rng(0).uniform(-0.5, 0.5, arm.n_dofs))
     R, p = (np.asarray(x) for x in gv.frames(arm, q))
@@ -70,11 +70,9 @@ def test_samples_on_the_grid_points_give_the_energy_gradient_on_a_multi_link_arm
     robot = arm.replace(contact=gv.Contact(obstacles=(bar,), rod=gv.Penalty(stiffness=3e5, damping=0.0), n_points=3))
     F = contact_force(robot, q)
     assert float(jnp.max(jnp.abs(F))) > 1.0
-    K = -jax.jacfwd(lambda x: contact_force(robot, x))(q)
-    assert float(jnp.max(jnp.abs(K - K.T))) <= 1e-12 * float(jnp.max(jnp.abs(K)))
-    E = jax.jit(lambda x: contact.energy(robot, x))
-    h = 1e-7
-    fd = np.array([(float(E(q + h * e)) - float(E(q - h * e))) / (2 * h) for e in np.eye(robot.n_dofs)])
+    h, eye = 1e-7, jnp.eye(robot.n_dofs)
+    E = jax.jit(jax.vmap(lambda x: contact.energy(robot, x)))(jnp.concatenate([q + h * eye, q - h * eye]))
+    fd = np.asarray(E[: robot.n_dofs] - E[robot.n_dofs:]) / (2 * h)
     np.testing.assert_allclose(-fd, np.asarray(F), rtol=1e-6, atol=1e-6 * float(jnp.max(jnp.abs(F))))
 
 
