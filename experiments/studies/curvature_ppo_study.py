@@ -182,10 +182,14 @@ def main(argv: list[str]) -> int:
     run = Path(args.runs) / tag
     out = ROOT / "benchmarks" / "curvature_ppo_study" / f"{tag}.json"
     earlier: list[dict] = []
-    if args.resume and (run / "timing.json").exists():  # the legs before this one, for the total wall time
+    if args.resume:  # the legs before this one, for the total wall time
         kept = json.loads(out.read_text()) if out.exists() else {}
-        earlier = [*kept.get("earlier_legs", []),
-                   {**json.loads((run / "timing.json").read_text()), "load_average": kept.get("load_average", [])}]
+        if (run / "timing.json").exists():  # the last leg ran to its end
+            leg = json.loads((run / "timing.json").read_text())
+        else:  # it was stopped: its time up to the checkpoint, from the metrics log
+            last = curve(run)[-1] if (run / "metrics.csv").exists() else {}
+            leg = {"train_s": last.get("wall_s", 0.0), "updates": int(last.get("update", 0)), "stopped": True}
+        earlier = [*kept.get("earlier_legs", []), {**leg, "load_average": kept.get("load_average", [])}]
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
                               f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false",
                               *(["resume=true"] if args.resume else []), *overrides])
