@@ -186,9 +186,11 @@ def main(argv: list[str]) -> int:
         kept = json.loads(out.read_text()) if out.exists() else {}
         if (run / "timing.json").exists():  # the last leg ran to its end
             leg = json.loads((run / "timing.json").read_text())
-        else:  # it was stopped: its time up to the checkpoint, from the metrics log
+        else:  # it was stopped: its time up to the checkpoint, from the metrics log (whose clock runs on
+            # across the legs before it)
             last = curve(run)[-1] if (run / "metrics.csv").exists() else {}
-            leg = {"train_s": last.get("wall_s", 0.0), "updates": int(last.get("update", 0)), "stopped": True}
+            before = sum(leg["train_s"] for leg in kept.get("earlier_legs", []))
+            leg = {"train_s": last.get("wall_s", 0.0) - before, "updates": int(last.get("update", 0)), "stopped": True}
         earlier = [*kept.get("earlier_legs", []), {**leg, "load_average": kept.get("load_average", [])}]
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
                               f"eval_targets={args.eval}", f"seed={args.seed}", "progress=false",
