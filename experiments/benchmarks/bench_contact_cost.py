@@ -8,7 +8,8 @@ with no obstacles (the samples' kinematics and J^T w alone), one sphere in
 reach (r 0.1 m at (0.35, 0, 0.75)), and 1, 4, 12 or 48 capsules: the first of the
 cage's bars (``reach_obstacles.layouts.cage``: twelve 3 cm bars) and the cage turned
 by 90, 180 and 270 degrees about the arm (48 bars all round it), with the task's broad
-phase (``Contact.pairs``) or another (", all pairs", ", K pairs", ", nearest K"). Cost per arm-step
+phase (``Contact.pairs``) or another (", all pairs", ", K pairs", ", nearest K"); ", rows split" reads
+the recursion's points as the contact did before it read a scanned link's stacked point. Cost per arm-step
 (us) is the call's time over batch x steps; every layout of a batch is compiled
 first and then timed in ``--rounds`` round-robin rounds (A B C ... A B C ...), so the
 ratios to the contact-free step are taken within one run under the same load; each
@@ -23,6 +24,7 @@ changes the physics shows.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -34,6 +36,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import gvsjax as gv  # noqa: F401  (XLA flags first)
+from gvsjax.core import contact as core_contact
+from gvsjax.core.kinematics import rows
 from gvsjax.tasks.reach_obstacles.layouts import cage, contact_arm, turn
 
 DT = 5e-3  # s
@@ -52,10 +56,29 @@ def bars(n: int) -> tuple:
     return tuple(out[:n])
 
 
+ROWS_SPLIT = ", rows split"
+
+
 def layouts(names: list[str]) -> dict[str, tuple | None]:
     table: dict[str, tuple | None] = {"none": None, "0 obstacles": (), "sphere": (SPHERE,)}
     # "N capsules", "N capsules, all pairs", "N capsules, K pairs": the first N bars
-    return {k: table[k] if k in table else bars(int(k.split(" capsules")[0])) for k in names}
+    plain = {k: k.removesuffix(ROWS_SPLIT) for k in names}
+    return {k: table[b] if b in table else bars(int(b.split(" capsules")[0])) for k, b in plain.items()}
+
+
+@contextlib.contextmanager
+def rows_split(on: bool):
+    """With ``on``, the contact reads the recursion's points with each scanned link's stacked point
+    split into one point per row (the data path before the samples read the stacked point)."""
+    if not on:
+        yield
+        return
+    evaluate = core_contact.evaluate
+    core_contact.evaluate = lambda robot, points, *a: evaluate(robot, rows(points), *a)
+    try:
+        yield
+    finally:
+        core_contact.evaluate = evaluate
 
 
 def robot(name: str, obstacles):
@@ -63,6 +86,7 @@ def robot(name: str, obstacles):
     "N capsules, all pairs" none, "N capsules, K pairs" ``pairs=K``, "N capsules, nearest K"
     ``nearest=K`` (each piece's K nearest)."""
     arm = contact_arm()
+    name = name.removesuffix(ROWS_SPLIT)
     if obstacles is None:
         return arm.replace(contact=None)
     contact = arm.contact.replace(obstacles=obstacles)
@@ -81,8 +105,9 @@ def runner(name: str, obstacles, n_steps: int, dtype, save: bool = False):
     r = robot(name, obstacles)
 
     def run(tension):
-        tr = gv.simulate(r, n_steps * DT, n_steps=n_steps, tendon_force=tension, integrator="ars443", dtype=dtype,
-                         save_every=1 if save else n_steps, check_stability=False)
+        with rows_split(name.endswith(ROWS_SPLIT)):  # patched while jit traces
+            tr = gv.simulate(r, n_steps * DT, n_steps=n_steps, tendon_force=tension, integrator="ars443",
+                             dtype=dtype, save_every=1 if save else n_steps, check_stability=False)
         return (tr.contact_gap, tr.q[-1]) if save else tr.q[-1]
 
     return jax.jit(jax.vmap(run))
