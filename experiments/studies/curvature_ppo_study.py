@@ -189,7 +189,7 @@ def main(argv: list[str]) -> int:
         else:  # it was stopped: its time up to the checkpoint, from the metrics log (whose clock runs on
             # across the legs before it)
             last = curve(run)[-1] if (run / "metrics.csv").exists() else {}
-            before = sum(leg["train_s"] for leg in kept.get("earlier_legs", []))
+            before = sum(x["train_s"] for x in kept.get("earlier_legs", []))
             leg = {"train_s": last.get("wall_s", 0.0) - before, "updates": int(last.get("update", 0)), "stopped": True}
         earlier = [*kept.get("earlier_legs", []), {**leg, "load_average": kept.get("load_average", [])}]
     code = gvsjax.train.main([f"task={task}", f"out={run}", f"total_episodes={args.episodes}",
