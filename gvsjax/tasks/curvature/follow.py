@@ -21,7 +21,7 @@ import numpy as np
 from flax import struct
 
 from gvsjax.tasks.curvature import rewards
-from gvsjax.tasks.curvature.base import CurvatureTask, EpisodeState
+from gvsjax.tasks.curvature.base import SAC_PUBLISHED_NETWORK, CurvatureTask, EpisodeState
 from gvsjax.tasks.curvature.control import ArmControl
 
 SETTLE_S = 2.0  # s: the tracking metrics skip the first seconds, when the arm leaves its rest pose
@@ -46,7 +46,7 @@ class FollowTarget(CurvatureTask):
     episode_length = 501
     published_return = 100.0
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 4_000}
-    sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 10_000}
+    sac_defaults = {**CurvatureTask.sac_defaults, **SAC_PUBLISHED_NETWORK, "total_episodes": 10_000}
 
     def default_params(self) -> FollowParams:
         return FollowParams()
