@@ -32,10 +32,15 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from gvsjax.core import linalg
 from gvsjax.core.validation import require
 from gvsjax.tasks.base import Environment, PyTree
 
 PLAN_SEED = 7  # the planner's own keys: it never sees the episode's random draws
+# The gradient planner traces its model with stacked solves (from 1 DoF on): the entry-by-entry
+# solve's transpose is the larger program, slower to compile and to run, on the balance arm
+# (3 DoFs) and the benchmark arm (14) alike (experiments/benchmarks/bench_mpc_derivative.py)
+DERIVATIVE_STACKED_MIN_DOFS = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,6 +144,10 @@ class MPC:
 
     def optimise(self, plan: jax.Array, state: PyTree) -> jax.Array:
         """The best plan (horizon, action_size) found by projected Adam from ``plan``."""
+        with linalg.stacked_solves(DERIVATIVE_STACKED_MIN_DOFS):
+            return self._optimise(plan, state)
+
+    def _optimise(self, plan: jax.Array, state: PyTree) -> jax.Array:
         opt = optax.adam(self.config.learning_rate)
         if self.config.gradient == "forward":
             value_and_grad = lambda a, s: (self.cost(a, s), jax.jacfwd(self.cost)(a, s))  # noqa: E731

@@ -5,11 +5,11 @@ policy, on the same episodes.
         [-- horizon=10 iterations=10 gradient=forward learning_rate=0.2]
     python experiments/studies/mpc_reference.py --task balance --checkpoint RUN_DIR --policy-only
 
-Writes benchmarks/mpc_reference/<task>.json: the controller's settings, its evaluation (the task's
-metrics, from ``reset`` keys of ``--seed``), its wall time (compilation included) and the machine's
-load; with ``--checkpoint``, the policy's evaluation on the same keys beside it (``--policy-only``: added
-to the committed file, the controller's run kept). ``--table`` prints the
-committed results (the docs' ``mpc_reference`` table, docs/gen_results.py).
+Writes benchmarks/mpc_reference/<task>.json (``--variant V``: <task>_V.json): the controller's settings,
+its evaluation (the task's metrics, from ``reset`` keys of ``--seed``), its wall time (compilation
+included) and the machine's load; with ``--checkpoint``, the policy's evaluation on the same keys
+beside it (``--policy-only``: added to the committed file, the controller's run kept). ``--table``
+prints the committed results (the docs' ``mpc_reference`` table, docs/gen_results.py).
 """
 
 from __future__ import annotations
@@ -29,12 +29,16 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks" / "mpc_reference"
 
 
-def add_policy(task: str, checkpoint: str) -> dict:
+def _path(task: str, variant: str) -> Path:
+    return OUT / (f"{task}_{variant}.json" if variant else f"{task}.json")
+
+
+def add_policy(task: str, checkpoint: str, variant: str = "") -> dict:
     """The committed file of ``task`` with the policy ``checkpoint`` evaluated on its episodes."""
-    path = OUT / f"{task}.json"
+    path = _path(task, variant)
     record = json.loads(path.read_text())
     start = time.perf_counter()
-    work = ROOT / "runs" / "mpc_reference" / task
+    work = ROOT / "runs" / "mpc_reference" / _path(task, variant).stem
     record["policy"] = evaluate.evaluate_run(checkpoint, work / "policy", record["episodes"], record["seed"])
     record["policy"]["wall_s"] = time.perf_counter() - start
     record["policy_command"] = "python experiments/studies/mpc_reference.py " + " ".join(sys.argv[1:])
@@ -49,12 +53,12 @@ def _write(path: Path, record: dict) -> None:
     print(f"wrote {path}")
 
 
-def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: str) -> dict:
+def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: str, variant: str = "") -> dict:
     types = {k: keyvalue.typed(evaluate.KEYS[k]) for k in evaluate.MPC_KEYS}
     config = mpc.MPCConfig(**{**{k: evaluate.KEYS[k] for k in evaluate.MPC_KEYS},
                               **keyvalue.parse(overrides, types)})
     load_before = os.getloadavg()
-    work = ROOT / "runs" / "mpc_reference" / task
+    work = ROOT / "runs" / "mpc_reference" / _path(task, variant).stem
     controller = evaluate.evaluate_controller(task, work / "mpc", config, episodes, seed)
     record = {"task": task, "command": "python experiments/studies/mpc_reference.py " + " ".join(sys.argv[1:]),
               "episodes": episodes, "seed": seed, "controller": controller,
@@ -64,7 +68,7 @@ def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: s
         record["policy"] = evaluate.evaluate_run(checkpoint, work / "policy", episodes, seed)
         record["policy"]["wall_s"] = time.perf_counter() - start
     OUT.mkdir(parents=True, exist_ok=True)
-    _write(OUT / f"{task}.json", record)
+    _write(_path(task, variant), record)
     return record
 
 
@@ -76,6 +80,7 @@ def main() -> None:
     ap.add_argument("--checkpoint", default="", help="a trained policy's run folder, evaluated on the same keys")
     ap.add_argument("--policy-only", action="store_true",
                     help="add the --checkpoint policy's evaluation to the committed file, on its episodes")
+    ap.add_argument("--variant", default="", help="a second run on a task: written to <task>_<variant>.json")
     ap.add_argument("--table", action="store_true", help="print the committed results")
     ap.add_argument("overrides", nargs="*", help="MPC settings as key=value (after --)")
     args = ap.parse_args()
@@ -88,9 +93,9 @@ def main() -> None:
     if args.policy_only:
         if not args.checkpoint:
             ap.error("--policy-only needs --checkpoint RUN_DIR")
-        add_policy(args.task, args.checkpoint)
+        add_policy(args.task, args.checkpoint, args.variant)
         return
-    run(args.task, args.episodes, args.seed, args.overrides, args.checkpoint)
+    run(args.task, args.episodes, args.seed, args.overrides, args.checkpoint, args.variant)
 
 
 if __name__ == "__main__":

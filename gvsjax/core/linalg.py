@@ -16,7 +16,8 @@ Plain array operations have no such dependency and differentiate as any other.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 
 import jax.numpy as jnp
 
@@ -26,6 +27,27 @@ from gvsjax.core.lie import Scalar, as_array, is_zero, mul, sub
 # batch 1024 (docs/speed.md): at 12 DoFs a wash (one rod equal, a two-link chain 23% slower);
 # at 18 and 24 DoFs the stacked form steps 1.2x and 2x faster and compiles 2-4x faster.
 STACKED_MIN_DOFS = 16
+
+
+@contextlib.contextmanager
+def stacked_solves(min_dofs: int = 1) -> Iterator[None]:
+    """Within the block, trace every solve of ``min_dofs`` or more unknowns (and the ``ars443``
+    step of that many DoFs) on stacked arrays.
+
+    For a program that will be differentiated in reverse mode: the entry-by-entry LDL^T is the
+    fastest forward step for a few DoFs, but its transpose is n^3 scalar operations more, which XLA
+    compiles slowly and runs slowly. The layout is chosen while tracing, so the block must hold the
+    tracing (``jax.jit(f).lower(...)``, the first call of a jitted function, or the traced body
+    itself); an executable compiled before keeps its layout.
+    """
+    global STACKED_MIN_DOFS
+    if not (isinstance(min_dofs, int) and min_dofs >= 1):
+        raise ValueError(f"min_dofs={min_dofs!r} is invalid: expected an int >= 1")
+    previous, STACKED_MIN_DOFS = STACKED_MIN_DOFS, min_dofs
+    try:
+        yield
+    finally:
+        STACKED_MIN_DOFS = previous
 
 
 def solve_spd(A: Sequence[Sequence[Scalar]], b: Sequence[Scalar]) -> list[Scalar]:

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from gvsjax.core import active_strain, contact, inputs, integrators
+from gvsjax.core import active_strain, contact, inputs, integrators, linalg
 from gvsjax.core.kinematics import tip_state
 from gvsjax.core.model import Robot
 from gvsjax.core.stability import stable_step_estimate
@@ -130,7 +130,7 @@ def simulate(
     traj = run(robot, jnp.asarray(q0, dtype=dtype), jnp.asarray(qd0, dtype=dtype),
                jnp.asarray(dt, dtype=dtype), values, n_steps=n_steps, save_every=save_every,
                integrator=integrator, law=law, laws=(tension_law, force_law, wrench_law, strain_law, rest_law),
-               control=control)
+               control=control, stacked_min_dofs=linalg.STACKED_MIN_DOFS)
     _warn_if_diverged(robot, traj, integrator)
     return traj
 
@@ -202,8 +202,17 @@ def _control(system: FreeDynamics, control, t, q_u, qd_u) -> dict:
     return control(t, jnp.stack(q), jnp.stack(qd))
 
 
-@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "laws", "control"))
-def _run(robot, q0, qd0, dt, values, *, n_steps, save_every, integrator, law, laws, control):
+@functools.partial(jax.jit, static_argnames=("n_steps", "save_every", "integrator", "law", "laws", "control",
+                                             "stacked_min_dofs"))
+def _run(robot, q0, qd0, dt, values, *, n_steps, save_every, integrator, law, laws, control, stacked_min_dofs):
+    # the solves' layout (linalg.stacked_solves) is a static argument, so a cached run never
+    # serves a call made under another layout
+    with linalg.stacked_solves(stacked_min_dofs):
+        return _trace_run(robot, q0, qd0, dt, values, n_steps=n_steps, save_every=save_every,
+                          integrator=integrator, law=law, laws=laws, control=control)
+
+
+def _trace_run(robot, q0, qd0, dt, values, *, n_steps, save_every, integrator, law, laws, control):
     if law is None:
         held = q0[jnp.asarray(robot.prescribed, dtype=int)]
         law = lambda t: held + 0.0 * t  # noqa: E731
