@@ -130,10 +130,12 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
 
     runs = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))]
     tasks = sorted({d["task"] for d in runs})
-    fig, axes = plt.subplots(len(tasks), 2, figsize=(10, 3.2 * len(tasks)), squeeze=False)
+    fig, axes = plt.subplots(len(tasks), 2, figsize=(13, 3.2 * len(tasks)), squeeze=False)
+    colors = plt.get_cmap("tab20").colors  # a task can hold more runs than the default cycle's 10 colours
     for row, task in zip(axes, tasks):
         env = make(task)
-        for d in (d for d in runs if d["task"] == task):
+        for i, d in enumerate(d for d in runs if d["task"] == task):
+            color = colors[i % len(colors)]
             points = smoothed([c for c in d["curve"] if "episode_benchmark_return" in c], d["config"]["num_envs"])
             label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}, {env_steps(d) / 1e6:.2g}M"
             final = d["eval"]["discounted_return_average"]["mean"]
@@ -144,15 +146,16 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
                     x = np.array([x_of(c) for c in points], float)
                     if ax is row[0]:
                         x = x * env_steps(d) / d["timing"]["updates"]
-                    line, = ax.plot(x, [c["episode_benchmark_return"] for c in points], lw=1, label=label)
-                    ax.plot([end], [final], "o", color=line.get_color())
+                    ax.plot(x, [c["episode_benchmark_return"] for c in points], lw=1, color=color, label=label)
+                    ax.plot([end], [final], "o", color=color)
                 else:
-                    ax.plot([end], [final], "o", label=label + " (evaluation only)")
+                    ax.plot([end], [final], "o", color=color, label=label + " (evaluation only)")
         for ax, xlabel in zip(row, ("environment steps", "training wall time (min)")):
             ax.axhline(env.published_return, ls="--", color="k", lw=1, label="published SAC, 5M steps")
             ax.set(xlabel=xlabel, ylabel="discounted return (averaged)", title=task)
             ax.grid(alpha=0.3)
-        row[0].legend(fontsize=7)
+        row[0].ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # steps as 1e6 x, labels apart
+        row[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))  # outside: curves stay visible
     fig.tight_layout()
     return plots.save(fig, path)
 
