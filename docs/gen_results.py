@@ -369,6 +369,18 @@ def benchmark_task_runs(root: Path) -> str:
             "\n\n```bash\npython experiments/studies/curvature_ppo_study.py --table\n```")
 
 
+def mpc_derivative(root: Path) -> str:
+    """The gradient planner's passes in both solve layouts (``benchmarks/mpc_derivative*.json``)."""
+    sys.path.insert(0, str(root / "experiments" / "benchmarks"))
+    import bench_mpc_derivative
+
+    parts = []
+    for path in sorted((root / "benchmarks").glob("mpc_derivative*.json")):
+        parts.append(bench_mpc_derivative.report(str(path)) + f"\n\nData: `benchmarks/{path.name}`."
+                     f"\n\n```bash\n{json.loads(path.read_text())['command']}\n```")
+    return "\n\n".join(parts)
+
+
 def mpc_reference(root: Path) -> str:
     """The MPC on each task it was run on, beside the task's policy on the same episodes
     (``benchmarks/mpc_reference/<task>.json``)."""
@@ -620,6 +632,7 @@ STUDIES = {
     "sim": sim_throughput,
     "benchmark_task_runs": benchmark_task_runs,
     "mpc_reference": mpc_reference,
+    "mpc_derivative": mpc_derivative,
     "elastica_twins": elastica_twins,
     "benchmark_tasks_speed": benchmark_tasks_speed,
     "time_to_quality": time_to_quality,
