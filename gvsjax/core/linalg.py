@@ -38,7 +38,8 @@ def stacked_solves(min_dofs: int = 1) -> Iterator[None]:
     fastest forward step for a few DoFs, but its transpose is n^3 scalar operations more, which XLA
     compiles slowly and runs slowly. The layout is chosen while tracing, so the block must hold the
     tracing (``jax.jit(f).lower(...)``, the first call of a jitted function, or the traced body
-    itself); an executable compiled before keeps its layout.
+    itself). ``simulate`` keys its cached program on the layout; a function of yours traced
+    before the block keeps the layout it was traced with (JAX caches traces per function).
     """
     global STACKED_MIN_DOFS
     if not (isinstance(min_dofs, int) and min_dofs >= 1):
