@@ -36,7 +36,7 @@ def worker(task: str, horizon: int, batch: int, layout: int, mode: str, repeats:
     import numpy as np
 
     from gvsjax.core import linalg
-    from gvsjax.mpc import MPC, MPCConfig
+    from gvsjax.mpc import DERIVATIVE_STACKED_MIN_DOFS, MPC, MPCConfig
     from gvsjax.tasks import make
 
     env = make(task)
@@ -47,7 +47,8 @@ def worker(task: str, horizon: int, batch: int, layout: int, mode: str, repeats:
         lambda x: jnp.broadcast_to(x, (batch, *x.shape)), state)
     f = jax.value_and_grad(mpc.cost) if mode == "reverse" else mpc.cost
     fn = jax.jit(jax.vmap(f))
-    with linalg.stacked_solves(1) if layout else contextlib.nullcontext():
+    # the stacked rows trace as the gradient planner does
+    with linalg.stacked_solves(DERIVATIVE_STACKED_MIN_DOFS) if layout else contextlib.nullcontext():
         t0 = time.perf_counter()
         lowered = fn.lower(plans, states)
         t1 = time.perf_counter()
