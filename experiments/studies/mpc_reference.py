@@ -8,7 +8,8 @@ policy, on the same episodes.
 Writes benchmarks/mpc_reference/<task>.json (``--variant V``: <task>_V.json): the controller's settings,
 its evaluation (the task's metrics, from ``reset`` keys of ``--seed``), its wall time (compilation
 included) and the machine's load; with ``--checkpoint``, the policy's evaluation on the same keys
-beside it (``--policy-only``: added to the committed file, the controller's run kept). ``--table``
+beside it (``--policy-only``: added to the committed file, the controller's run kept; ``--policy-from
+FILE``: copied from another committed file on the same episodes). ``--table``
 prints the committed results (the docs' ``mpc_reference`` table, docs/gen_results.py).
 """
 
@@ -42,6 +43,23 @@ def add_policy(task: str, checkpoint: str, variant: str = "") -> dict:
     record["policy"] = evaluate.evaluate_run(checkpoint, work / "policy", record["episodes"], record["seed"])
     record["policy"]["wall_s"] = time.perf_counter() - start
     record["policy_command"] = "python experiments/studies/mpc_reference.py " + " ".join(sys.argv[1:])
+    _write(path, record)
+    return record
+
+
+def policy_from(task: str, variant: str, source: str) -> dict:
+    """The committed ``<task>_<variant>.json`` with the policy evaluation of another committed file of
+    the task, whose episodes (``seed``, ``episodes``) must be the same: a deterministic policy on the same
+    ``reset`` keys gives the same episodes, so its evaluation is copied with the file it came from."""
+    path, other = _path(task, variant), Path(source)
+    record, theirs = json.loads(path.read_text()), json.loads(other.read_text())
+    if "policy" not in theirs:
+        raise ValueError(f"{other} holds no policy evaluation")
+    same = ("task", "seed", "episodes")
+    if any(record[k] != theirs[k] for k in same):
+        raise ValueError(f"{other} ran other episodes: {[theirs[k] for k in same]} against {[record[k] for k in same]}")
+    record["policy"] = {**theirs["policy"], "copied_from": os.path.relpath(other, ROOT)}
+    record["policy_command"] = theirs.get("policy_command", theirs["command"])
     _write(path, record)
     return record
 
@@ -80,6 +98,8 @@ def main() -> None:
     ap.add_argument("--checkpoint", default="", help="a trained policy's run folder, evaluated on the same keys")
     ap.add_argument("--policy-only", action="store_true",
                     help="add the --checkpoint policy's evaluation to the committed file, on its episodes")
+    ap.add_argument("--policy-from", default="",
+                    help="copy the policy evaluation of another committed file of the task on the same episodes")
     ap.add_argument("--variant", default="", help="a second run on a task: written to <task>_<variant>.json")
     ap.add_argument("--table", action="store_true", help="print the committed results")
     ap.add_argument("overrides", nargs="*", help="MPC settings as key=value (after --)")
@@ -89,6 +109,9 @@ def main() -> None:
         from gen_results import mpc_reference
 
         print(mpc_reference(ROOT))
+        return
+    if args.policy_from:
+        policy_from(args.task, args.variant, args.policy_from)
         return
     if args.policy_only:
         if not args.checkpoint:
