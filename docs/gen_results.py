@@ -381,6 +381,14 @@ def mpc_derivative(root: Path) -> str:
     return "\n\n".join(parts)
 
 
+def mpc_bc(root: Path) -> str:
+    """Behaviour cloning of the gradient MPC against the PPO default (``benchmarks/mpc_bc/*.json``)."""
+    sys.path.insert(0, str(root / "experiments" / "studies"))
+    import mpc_behaviour_cloning
+
+    return mpc_behaviour_cloning.table(root)
+
+
 def mpc_reference(root: Path) -> str:
     """The MPC on each task it was run on, beside the task's policy on the same episodes
     (``benchmarks/mpc_reference/<task>.json``)."""
@@ -487,14 +495,21 @@ def benchmark_tasks_speed(root: Path) -> str:
         for g in r["gvsjax"]:
             rows.append([f"`{name}`", "yes" if r["contact"] else "no", g["batch"], num(g["env_steps_per_s"], 0),
                          sig(pe["env_steps_per_s_2_cores"], 3), f"{g['ratio_to_pyelastica_2_cores']:.1f}x",
-                         f"{r['target_ratio']:.0f}x", f"{g['loadavg_before'][0]:.1f}"])
+                         f"{r['target_ratio']:.0f}x", _duration(5e6 / g["env_steps_per_s"]),
+                         f"{g['loadavg_before'][0]:.1f}"])
     return (table(["task", "contact", "batch", "gvsjax env steps/s", "PyElastica env steps/s (2 cores)",
-                   "ratio", "issue 48's target", "load (1 min)"], rows)
+                   "ratio", "issue 48's target", "5M env steps (their budget), the env alone", "load (1 min)"],
+                  rows)
             + "\n\ngvsjax: `jit(vmap(env.step))`, float32 (the training dtype), median of 3 calls after "
             "compiling; PyElastica: one twin per process, its rate x 2 cores. "
             f"Machine: {d['machine']}; `uptime` before: {d['uptime_before']}. "
             "Data: `benchmarks/benchmark_tasks_speed.json`."
             f"\n\n```bash\n{d['command']}\n```")
+
+
+def _duration(seconds: float) -> str:
+    """A duration in minutes, or in hours past two."""
+    return f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
 def _first_and_held(curve: list[dict], ok) -> tuple[int | None, int | None]:
@@ -633,6 +648,7 @@ STUDIES = {
     "benchmark_task_runs": benchmark_task_runs,
     "mpc_reference": mpc_reference,
     "mpc_derivative": mpc_derivative,
+    "mpc_bc": mpc_bc,
     "elastica_twins": elastica_twins,
     "benchmark_tasks_speed": benchmark_tasks_speed,
     "time_to_quality": time_to_quality,

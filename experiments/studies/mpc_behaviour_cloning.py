@@ -176,16 +176,22 @@ def _write(path: Path, record: dict) -> None:
     print(f"wrote {path}")
 
 
-def table() -> str:
-    lines = ["| task | MPC episodes | collect s | clone s | clone's return | PPO default: return, wall s |",
-             "|---|---|---|---|---|---|"]
-    for f in sorted(OUT.glob("*.json")):
+def table(root: Path = ROOT) -> str:
+    """The committed results (``benchmarks/mpc_bc/*.json``) as a Markdown table."""
+    lines = ["| task | MPC | demonstrations | MPC wall time (compiling) | clone's fit: held-out error / "
+             "action variance | clone, 1000 held-out episodes | PPO default (return, wall time) |",
+             "|---|---|---|---|---|---|---|"]
+    for f in sorted((root / "benchmarks" / "mpc_bc").glob("*.json")):
         d = json.loads(f.read_text())
-        collect_s = sum(c["wall_s"] for c in d["collect"]["chunks"])
-        ppo = "; ".join(f"{r['discounted_return_average']:.1f}, {r['wall_s']:.0f}" for r in d["ppo_defaults"])
-        lines.append(f"| `{d['task']}` | {d['episodes']} | {collect_s:.0f} | {d['clone']['wall_s']:.0f} | "
-                     f"{d['eval']['discounted_return_average']['mean']:.1f} | {ppo} |")
-    return "\n".join(lines)
+        s, c, chunks = d["controller"], d["clone"], d["collect"]["chunks"]
+        ppo = "; ".join(f"{r['discounted_return_average']:.1f}, {r['wall_s'] / 60:.0f} min ({r['episodes']} episodes)"
+                        for r in d["ppo_defaults"])
+        lines.append(
+            f"| `{d['task']}` | H {s['horizon']}, {s['iterations']} Adam steps | {d['episodes']} episodes, "
+            f"{c['pairs_train'] + c['pairs_held']} pairs | {sum(x['wall_s'] for x in chunks) / 60:.0f} min "
+            f"({sum(x['compile_s'] for x in chunks) / 60:.0f} min) | {c['held_mse']:.2f} / {c['action_variance']:.2f} "
+            f"| discounted return {d['eval']['discounted_return_average']['mean']:.1f} | {ppo} |")
+    return "\n".join(lines) + "\n\nData: `benchmarks/mpc_bc/*.json`."
 
 
 def main() -> None:
