@@ -114,6 +114,8 @@ def clone(task: str, demos: dict, work: Path, epochs: int, seed: int) -> dict:
         return network.apply(p, o)[0]  # the Gaussian's mean
     ok = demos["valid"].all(axis=1)  # episodes that stayed finite
     n_ep = int(ok.sum())
+    if n_ep < 2:
+        raise ValueError(f"{n_ep} of the {len(ok)} demonstrations stayed finite; cloning needs at least 2")
     held = max(1, n_ep // 10)
     idx = np.flatnonzero(ok)
     rng = np.random.default_rng(seed)
