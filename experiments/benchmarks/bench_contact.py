@@ -13,8 +13,9 @@ and the fraction of throws that touched anything or ended non-finite.
 
 Obstacles: one sphere (r = 10 cm) at (0.75, -0.55, 0), which every throw hits; 12
 capsules (r = 1.5 cm, 0.4 m long, along z) on a 3 x 4 grid across the swing's
-upper half, some in reach and some not; and the same with the broad phase
-(``Contact.nearest`` 4: the law on each piece's 4 nearest capsules).
+upper half, some in reach and some not; and the same with either broad phase
+(``Contact.nearest`` 4: the law on each piece's 4 nearest capsules; ``Contact.pairs`` 16: the
+law on at most 16 (piece, capsule) pairs in reach along the link).
 
     python experiments/benchmarks/bench_contact.py [--repeats 5] [--batch 1024] [--json benchmarks/contact.json]
 
@@ -27,6 +28,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
+import sys
 import time
 
 import jax
@@ -44,7 +47,8 @@ def layouts() -> dict[str, gv.Contact | None]:
     capsules = tuple(gv.Capsule(start=(x, y, -0.2), end=(x, y, 0.2), radius=0.015)
                      for x in (0.55, 0.8, 1.05) for y in (-0.9, -0.5, -0.1, 0.3))
     return {"none": None, "sphere": gv.Contact(obstacles=(sphere,)), "12 capsules": gv.Contact(obstacles=capsules),
-            "12 capsules nearest 4": gv.Contact(obstacles=capsules, nearest=4)}
+            "12 capsules nearest 4": gv.Contact(obstacles=capsules, nearest=4),
+            "12 capsules pairs 16": gv.Contact(obstacles=capsules, pairs=16)}
 
 
 def make_throws(contact, n_steps: int, integrator: str, save_every: int | None = None):
@@ -67,7 +71,7 @@ def main() -> None:
     ap.add_argument("--integrator", default="rk4")
     ap.add_argument("--steps", type=int, default=1500)  # dt <= 2 ms for the longest throw
     ap.add_argument("--json", type=str, default=None)
-    ap.add_argument("--layouts", type=str, default="none,sphere,12 capsules,12 capsules nearest 4",
+    ap.add_argument("--layouts", type=str, default="none,sphere,12 capsules,12 capsules nearest 4,12 capsules pairs 16",
                     help="comma-separated, 'none' first")
     args = ap.parse_args()
     before = load_average()
@@ -95,7 +99,8 @@ def main() -> None:
             r["slowdown_vs_first"] = base / r["throws_per_s"]
         if args.json:  # after every layout: an interrupted run keeps what it measured
             with open(args.json, "w") as fh:
-                json.dump(dict(integrator=args.integrator, n_steps=args.steps, rows=rows, load_average_before=before,
+                json.dump(dict(command=shlex.join(["python", "experiments/benchmarks/bench_contact.py", *sys.argv[1:]]),
+                               integrator=args.integrator, n_steps=args.steps, rows=rows, load_average_before=before,
                                load_average_after=load_average(), getloadavg_after=os.getloadavg(),
                                cpu_count=jax.local_device_count(),
                                jax=jax.__version__), fh, indent=2)
