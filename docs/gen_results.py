@@ -358,7 +358,8 @@ def contact_swing(root: Path) -> str:
         d = json.loads(path.read_text())
         rows = [[r["layout"], num(r["throws_per_s"], 0), f"{r['slowdown_vs_first']:.1f}x", f"{r['compile_s']:.1f} s",
                  f"{1e3 * r['deepest_penetration_m']:.1f} mm", f"{r['loadavg'][0]:.1f}"] for r in d["rows"]]
-        parts.append(table(["layout", "throws/s", "slowdown", "compile", "deepest penetration", "load after (1 min)"], rows)
+        header = ["layout", "throws/s", "slowdown", "compile", "deepest penetration", "load after (1 min)"]
+        parts.append(table(header, rows)
                      + f"\n\nThe paper's swing, `{d['integrator']}`, {d['n_steps']} steps per throw, batch "
                      f"{d['rows'][0]['batch']}; {d['load_average_before']}. Data: `benchmarks/{path.name}`."
                      f"\n\n```bash\n{d['command']}\n```")
