@@ -112,6 +112,7 @@ def clone(task: str, demos: dict, work: Path, epochs: int, seed: int) -> dict:
 
     def apply(p, o):
         return network.apply(p, o)[0]  # the Gaussian's mean
+
     ok = demos["valid"].all(axis=1)  # episodes that stayed finite
     n_ep = int(ok.sum())
     if n_ep < 2:
