@@ -44,8 +44,8 @@ from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.train import init
 from gvsjax.tasks import make
 from gvsjax.train import task_defaults, training_params
-from gvsjax.utils import keyvalue
 from gvsjax.utils.compile_clock import compile_seconds
+from mpc_reference import mpc_config  # this folder is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks" / "mpc_bc"
@@ -215,9 +215,7 @@ def main() -> None:
         return
     if args.seed == EVAL_SEED:
         ap.error(f"--seed {EVAL_SEED} is the evaluation's; the demonstrations need other episodes")
-    types = {k: keyvalue.typed(evaluate.KEYS[k]) for k in evaluate.MPC_KEYS}
-    config = mpc.MPCConfig(**{**{k: evaluate.KEYS[k] for k in evaluate.MPC_KEYS},
-                              **keyvalue.parse(args.overrides, types)})
+    config = mpc_config(args.overrides)
     work = Path(args.work) if args.work else ROOT / "runs" / "mpc_bc" / args.task
     work.mkdir(parents=True, exist_ok=True)
     record = {"task": args.task, "command": "python experiments/studies/mpc_behaviour_cloning.py "

@@ -71,10 +71,14 @@ def _write(path: Path, record: dict) -> None:
     print(f"wrote {path}")
 
 
-def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: str, variant: str = "") -> dict:
+def mpc_config(overrides: list[str]) -> mpc.MPCConfig:
+    """The controller's settings: ``gvsjax.evaluate``'s defaults with ``key=value`` overrides."""
     types = {k: keyvalue.typed(evaluate.KEYS[k]) for k in evaluate.MPC_KEYS}
-    config = mpc.MPCConfig(**{**{k: evaluate.KEYS[k] for k in evaluate.MPC_KEYS},
-                              **keyvalue.parse(overrides, types)})
+    return mpc.MPCConfig(**{**{k: evaluate.KEYS[k] for k in evaluate.MPC_KEYS}, **keyvalue.parse(overrides, types)})
+
+
+def run(task: str, episodes: int, seed: int, overrides: list[str], checkpoint: str, variant: str = "") -> dict:
+    config = mpc_config(overrides)
     load_before = os.getloadavg()
     work = ROOT / "runs" / "mpc_reference" / _path(task, variant).stem
     controller = evaluate.evaluate_controller(task, work / "mpc", config, episodes, seed)
