@@ -500,15 +500,18 @@ def benchmark_tasks_speed(root: Path) -> str:
     for name, r in d["tasks"].items():
         pe = r["pyelastica"]
         for g in r["gvsjax"]:
-            rows.append([f"`{name}`", "yes" if r["contact"] else "no", g["batch"], num(g["env_steps_per_s"], 0),
+            rows.append([f"`{name}`", "yes" if r["contact"] else "no", g["batch"], g.get("devices", 1),
+                         num(g["env_steps_per_s"], 0),
                          sig(pe["env_steps_per_s_2_cores"], 3), f"{g['ratio_to_pyelastica_2_cores']:.1f}x",
                          f"{r['target_ratio']:.0f}x", _duration(5e6 / g["env_steps_per_s"]),
                          f"{g['loadavg_before'][0]:.1f}"])
-    return (table(["task", "contact", "batch", "gvsjax env steps/s", "PyElastica env steps/s (2 cores)",
+    return (table(["task", "contact", "batch", "devices", "gvsjax env steps/s", "PyElastica env steps/s (2 cores)",
                    "ratio", "issue 48's target", "5M env steps (their budget), the env alone", "load (1 min)"],
                   rows)
             + "\n\ngvsjax: `jit(vmap(env.step))`, float32 (the training dtype), median of 3 calls after "
-            "compiling; PyElastica: one twin per process, its rate x 2 cores. "
+            "compiling, on one JAX device or with the batch split over 2 CPU devices, one per core "
+            "(`XLA_FLAGS=--xla_force_host_platform_device_count=2`); PyElastica: one twin per process, its rate "
+            "x 2 cores. "
             f"Machine: {d['machine']}; `uptime` before: {d['uptime_before']}. "
             "Data: `benchmarks/benchmark_tasks_speed.json`."
             f"\n\n```bash\n{d['command']}\n```")
