@@ -5,8 +5,8 @@
   ``lax.scan`` per call with uniform random actions; the time is the median of ``--repeats`` calls after
   a compiling one. No auto-reset: the steps of one episode, env.step alone. Each batch is timed on one
   JAX device and, split in equal parts (``gvsjax.utils.sharding``), on ``--devices`` CPU devices, one
-  per core (``XLA_FLAGS=--xla_force_host_platform_device_count``, set by this script), as
-  ``gvsjax.train`` runs when started with that flag (docs/scale_out.md).
+  per core (``XLA_FLAGS=--xla_force_host_platform_device_count``, set by this script), as PPO
+  training splits its envs when started with that flag (docs/scale_out.md).
 * PyElastica: one twin (``elastica_twins.ElasticaTwin``) in this process, ``--pe-steps`` control steps
   of random actions after a first one (numba compiles); twins share nothing, so 2 processes on the 2
   cores give at most twice that: the reported PyElastica throughput is 2 x the one-process rate.
@@ -35,7 +35,9 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path[:0] = [HERE, ROOT, os.path.join(ROOT, "experiments", "transfer")]  # elastica_twins
 
 # the CPU device count is fixed when JAX starts: read before anything imports it
-_DEVICES = int(sys.argv[sys.argv.index("--devices") + 1]) if "--devices" in sys.argv else os.cpu_count() or 1
+_early = argparse.ArgumentParser(add_help=False)
+_early.add_argument("--devices", type=int, default=os.cpu_count() or 1)
+_DEVICES = _early.parse_known_args()[0].devices
 os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
                            + f" --xla_force_host_platform_device_count={_DEVICES}").strip()
 
