@@ -353,15 +353,15 @@ def contact_swing(root: Path) -> str:
     """The paper's swing with contact (``benchmarks/contact.json``, ``benchmarks/contact_swing_*.json``),
     one table per run."""
     parts = []
-    paths = [root / "benchmarks" / "contact.json", *sorted((root / "benchmarks").glob("contact_swing_*.json"))]
-    for path in paths:
-        d = json.loads(path.read_text())
+    names = ["contact.json", *sorted(p.name for p in (root / "benchmarks").glob("contact_swing_*.json"))]
+    for name in names:
+        d = load(root, name)
         rows = [[r["layout"], num(r["throws_per_s"], 0), f"{r['slowdown_vs_first']:.1f}x", f"{r['compile_s']:.1f} s",
                  f"{1e3 * r['deepest_penetration_m']:.1f} mm", f"{r['loadavg'][0]:.1f}"] for r in d["rows"]]
         header = ["layout", "throws/s", "slowdown", "compile", "deepest penetration", "load after (1 min)"]
         parts.append(table(header, rows)
                      + f"\n\nThe paper's swing, `{d['integrator']}`, {d['n_steps']} steps per throw, batch "
-                     f"{d['rows'][0]['batch']}; {d['load_average_before']}. Data: `benchmarks/{path.name}`."
+                     f"{d['rows'][0]['batch']}; {d['load_average_before']}. Data: `benchmarks/{name}`."
                      f"\n\n```bash\n{d['command']}\n```")
     return "\n\n".join(parts)
 

@@ -36,7 +36,8 @@ sys.path[:0] = [HERE, ROOT, os.path.join(ROOT, "experiments", "transfer")]  # el
 
 # the CPU device count is fixed when JAX starts: read before anything imports it
 _early = argparse.ArgumentParser(add_help=False)
-_early.add_argument("--devices", type=int, default=os.cpu_count() or 1)
+_early.add_argument("--devices", type=int, default=os.cpu_count() or 1,
+                    help="CPU devices to split the batch over, besides one (default: the cores)")
 _DEVICES = _early.parse_known_args()[0].devices
 os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
                            + f" --xla_force_host_platform_device_count={_DEVICES}").strip()
@@ -115,12 +116,11 @@ def pyelastica_rate(name: str, n_steps: int) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 parents=[_early])
     ap.add_argument("--tasks", nargs="+", default=list(TASKS), choices=TASKS)
     ap.add_argument("--batches", default="1,500,1024")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--devices", type=int, default=_DEVICES,
-                    help="CPU devices to split the batch over, besides one (default: the cores)")
     ap.add_argument("--pe-steps", type=int, default=0, help="PyElastica control steps (default: ~10 s of each)")
     ap.add_argument("--json", default=os.path.join(ROOT, "benchmarks", "benchmark_tasks_speed.json"))
     args = ap.parse_args()
@@ -136,7 +136,7 @@ def main() -> None:
               f"({pe['verlet_step_us']:.0f} us per Verlet step)", flush=True)
         rows = []
         for b in (int(x) for x in args.batches.split(",")):
-            for d in sorted({1, _DEVICES}):
+            for d in sorted({1, args.devices}):
                 if b % d:
                     continue
                 g = gvsjax_rate(name, b, 2 if contact else 8, args.repeats, d)
