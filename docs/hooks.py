@@ -5,7 +5,7 @@
 - ``figures/``, ``notebooks/`` and ``benchmarks/`` live at the repository root; they join the site under
   the same names, and relative links to them from the docs (``../figures/x.png``, as GitHub reads
   them) are rewritten for the site; a link to any other file outside docs/ (a source file) becomes
-  plain code text;
+  plain code text, and a link to a file that does not exist is a warning;
 - every public name must have a docstring and an entry on the API pages: each miss is a warning, which
   ``mkdocs build --strict`` turns into a failed build.
 """
@@ -88,6 +88,8 @@ def rewrite_links(markdown: str, src_real: Path, src_uri: str) -> str:
         if not path.startswith(".."):
             return m.group(0)
         real = Path(posixpath.normpath((src_real.parent / path).as_posix()))
+        if not real.exists():  # else unlinked below, a dead link would pass unseen
+            log.warning(f"{src_uri}: link to a file that does not exist: {target}")
         uri = _site_uri(real)
         if uri is None:  # a source file: name it
             label = text[1:-1]
