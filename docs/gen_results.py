@@ -4,6 +4,8 @@
 line ``<!-- results: NAME -->`` (the mkdocs hook, ``docs/hooks.py``, puts the table there; GitHub shows
 nothing). ``pages(root)`` returns the generated Results section: an overview of every task's default
 run, a page per task with every recorded run and its command, and an index of the data files.
+``task_table(root, docs)`` is the table of tasks of both front pages: the site's home page shows it (as
+``tasks``), README.md holds it as printed with ``docs="docs/"`` (tests/test_docs.py compares them).
 
 Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs, their training, the
 command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
@@ -28,6 +30,21 @@ TASK_PAGES = {  # task -> its page (docs-relative); the eval files of these task
     "reach_pose_muscle": "tasks/reach_pose.md", "reach_obstacles": "tasks/reach_obstacles.md",
     "reach_obstacles_2d": "tasks/reach_obstacles.md", "balance": "tasks/balance.md",
 }
+# the table of tasks on both front pages (README.md, docs/index.md): what an episode is, by task
+EPISODES = {
+    "basketball": "one throw of the paper's arm at a target on the court (the paper: 100% / 55%)",
+    "pickplace": "two 5 s motions of a tendon arm to a pick and a place target",
+    "throw3d": "one throw from a base that also turns, at 3D targets all around the shooter",
+    "track3d": "10 s of closed-loop tendon control of a 3D arm following a moving target",
+    "reach_pose": "2 s of closed-loop control to a target tip position and direction",
+    "reach_obstacles": "3 s of closed-loop control reaching into a cage of bars, with contact",
+    "balance": "10 s of base torque swinging the paper's arm up and holding it upright",
+}
+# the benchmark tasks have no eval file: their row summarises tasks_benchmark.md's findings
+BENCHMARK_ROW = ["[`follow_target`, `ik_4d`, `obstacles_2d`, `obstacles_3d`](tasks_benchmark.md)",
+                 "the soft-arm benchmark of Choi & Tong (natural-curvature control)",
+                 "SAC: 81-89% of the published return on `follow_target` at their 5M steps with their network "
+                 "(~60% with a smaller one), ~80% on `ik_4d` at 2M (PPO: a sixth and a ninth); obstacles in progress"]
 GROUPS = {"default": "the default", "longer": "longer training", "reference": "references and baselines",
           "box": "on the whole box (before the reachable default)", "variant": "variants (studies)"}
 
@@ -683,10 +700,17 @@ def tables(root: Path = ROOT) -> dict[str, str]:
             out[f"{task}_variants"] = eval_table(d, ("variant",))
     for name, make in STUDIES.items():
         out[name] = make(root)
-    # for pages at the top of docs/ (links relative to it)
-    out["task_headlines"] = table(["task", "default run (seed 0, 1000 held-out episodes)"],
-                                  [[f"[`{task}`]({page})", headline(root, task)] for task, page in TASK_PAGES.items()])
+    out["tasks"] = task_table(root)
     return out
+
+
+def task_table(root: Path = ROOT, docs: str = "") -> str:
+    """The front pages' table of tasks; links relative to docs/ behind ``docs`` (the README's: ``"docs/"``)."""
+    rows = [[f"[`{task}`]({docs}{TASK_PAGES[task]})", episode, headline(root, task)]
+            for task, episode in EPISODES.items()]
+    page, *cells = BENCHMARK_ROW
+    rows.append([page.replace("](", f"]({docs}"), *cells])
+    return table(["task", "episode", "default run (seed 0)"], rows)
 
 
 def pages(root: Path = ROOT) -> dict[str, str]:

@@ -182,9 +182,19 @@ def test_every_documented_command_names_what_exists():
             assert task in tasks or task in ("NAME", "bend"), (where, cmd)
 
 
-def test_readme_results_are_the_generated_ones():
-    """Each task's cell in the README is its results page's headline, from the same committed file."""
-    readme = (ROOT / "README.md").read_text()
-    for task in ["basketball", "pickplace", "throw3d", "track3d", "reach_pose", "reach_obstacles", "balance"]:
-        row = next(line for line in readme.splitlines() if line.startswith(f"| [`{task}`]"))
-        assert row.rstrip(" |").endswith(gen_results.headline(ROOT, task)), (task, row)
+def test_the_front_pages_show_one_table_of_tasks():
+    """The README's table of tasks is the one the site's home page is given (``gen_results.task_table``):
+    each task's episode and its default run's headline, from the same committed files."""
+    assert "<!-- results: tasks -->" in (DOCS / "index.md").read_text()
+    expected = gen_results.task_table(ROOT, "docs/")
+    assert expected in (ROOT / "README.md").read_text(), f"README.md's table of tasks should read:\n{expected}"
+
+
+def test_every_registered_task_is_on_the_front_pages():
+    """A task has its row, or is a variant shown on its task's page, or is one of the benchmark tasks."""
+    from gvsjax.tasks import registered
+
+    pages = {gen_results.TASK_PAGES[t] for t in gen_results.EPISODES}
+    for task in registered():
+        assert (task in gen_results.EPISODES or gen_results.TASK_PAGES.get(task) in pages
+                or f"`{task}`" in gen_results.BENCHMARK_ROW[0]), task
