@@ -8,13 +8,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation  # the test extra's independent reference
 
 import gvsjax  # noqa: F401
 from gvsjax.core.curvature_arm import SEGMENT_SHARE, segment_lengths
 from gvsjax.tasks import make
 from gvsjax.tasks.curvature import control, rewards
-
-Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
 
 
 def test_reach_reward_by_hand():
@@ -116,17 +115,70 @@ def test_a_wrong_arm_is_named():
         follow.reset(jax.random.PRNGKey(0), params)
 
 
-def test_the_step_reports_the_benchmark_return_at_the_episode_end():
-    env, step = batched_step("follow_target")  # the program the jit/vmap test compiled: a whole episode
+def test_a_failed_step_scores_minus_ten_ends_the_episode_and_counts_over_its_length():
+    """As the benchmark's: a non-finite step gives -10 and ends the episode; the returns divide by the
+    episode's own length (2 steps here), not the task's."""
+    env, step = batched_step("follow_target")  # the program the jit/vmap test compiled
     params = env.default_params()
     keys = jax.random.split(jax.random.PRNGKey(2), 3)
+    _, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+    _, state, r0, done, info = step(keys, state, jnp.zeros((3, 10)), params)
+    assert bool(jnp.all(info["valid"])) and not bool(jnp.any(done))
+    _, state, r1, done, info = step(keys, state, jnp.zeros((3, 10)).at[1, 4].set(jnp.nan), params)
+    assert np.asarray(info["valid"]).tolist() == [True, False, True]
+    assert np.asarray(done).tolist() == [False, True, False]
+    assert float(r1[1]) == -10.0 and env.failure_reward == -10.0
+    assert bool(jnp.all(jnp.isfinite(state.q)))  # the state before the failure is kept
+    # recorded as evaluate records it: ``valid`` False from the failed step on, whatever follows
+    rewards = np.array([[float(r0[1]), -10.0, 99.0, 99.0]])
+    out = control.discounted_returns(rewards, np.array([[True, False, False, False]]))
+    np.testing.assert_allclose(out["average"], (float(r0[1]) - 10.0 * 1.99) / 2, rtol=1e-12)
+    np.testing.assert_allclose(out["start"], float(r0[1]) - 9.9, rtol=1e-12)
+
+
+def test_ik_observes_both_orientations_as_quaternions_in_the_published_order():
+    """86 values: angles, twists, positions, velocities, the target, the target's quaternion, the tip's
+    (their observation's fields in alphabetical order), each (x, y, z, w) with SciPy's sign."""
+    env, step = batched_step("ik_4d")
+    params = env.default_params()
+    keys = jax.random.split(jax.random.PRNGKey(3), 3)
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
-    rng = np.random.default_rng(0)
-    rewards_, done = [], np.zeros(3, bool)
-    while not done.any():
-        obs, state, reward, done, info = step(keys, state, jnp.asarray(rng.uniform(-1, 1, (3, 10))), params)
-        rewards_.append(np.asarray(reward))
-        done = np.asarray(done)
-    assert len(rewards_) == env.episode_length and done.all()
-    expected = control.discounted_returns(np.stack(rewards_, 1))["average"]
-    np.testing.assert_allclose(np.asarray(info["benchmark_return"]), expected, rtol=1e-6)
+    assert env.obs_size == 86 and obs.shape == (3, 86)
+    np.testing.assert_allclose(np.asarray(obs[:, 82:]), np.tile([0.0, 0.0, 1.0, 0.0], (3, 1)), atol=1e-12)  # yaw pi
+    actions = jnp.ones((3, 15)).at[1].set(-0.7).at[2, 10:].set(1.0)
+    for _ in range(3):
+        obs, state, _, _, info = step(keys, state, actions, params)
+    assert bool(jnp.all(info["valid"]))
+    obs = np.asarray(obs)
+    np.testing.assert_allclose(obs[:, :10], np.asarray(state.kappa).reshape(3, -1))
+    np.testing.assert_allclose(obs[:, 10:15], np.asarray(state.twist))
+    np.testing.assert_allclose(obs[:, 75:78], np.asarray(state.target))
+    yaw = np.asarray(state.goal)
+    want_target = Rotation.from_euler("xyz", np.stack([0 * yaw, 0 * yaw, yaw], 1)).as_quat()
+    frames = np.stack([np.asarray(rewards.benchmark_frame(R)) for R in state.tip_R])
+    np.testing.assert_allclose(obs[:, 78:82], want_target, atol=1e-12)
+    np.testing.assert_allclose(obs[:, 82:86], Rotation.from_matrix(frames).as_quat(), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(obs[:, 78:82], axis=1), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(obs[:, 82:86], axis=1), 1.0, rtol=1e-12)
+    # the reward's orientation error is the quaternions' 1 - <q_tip, q_target>^2
+    o = 1.0 - np.sum(obs[:, 78:82] * obs[:, 82:86], axis=1) ** 2
+    np.testing.assert_allclose(np.asarray(info["orientation"]), o, atol=1e-12)
+
+
+def test_the_quaternion_has_scipys_sign_on_random_rotations():
+    R = Rotation.random(500, random_state=4).as_matrix()
+    R = np.concatenate([R, np.diag([1.0, -1, -1])[None], np.diag([-1.0, 1, -1])[None], np.eye(3)[None]])
+    q = np.asarray(jax.jit(jax.vmap(rewards.quaternion))(jnp.asarray(R)))
+    np.testing.assert_allclose(q, Rotation.from_matrix(R).as_quat(), atol=1e-12)
+
+
+def test_ik_4d_frame_keeps_the_rotation_matrix_observation():
+    frame, ik = make("ik_4d_frame"), make("ik_4d")
+    params = frame.default_params()
+    assert params.orientation_obs == "frame" and frame.obs_size == 89
+    obs, state = frame.reset(jax.random.PRNGKey(5), params)
+    assert obs.shape == (89,)
+    np.testing.assert_allclose(np.asarray(obs[78:80]), [np.cos(float(state.goal)), np.sin(float(state.goal))])
+    np.testing.assert_allclose(np.asarray(obs[80:]), np.diag([-1.0, -1.0, 1.0]).reshape(-1), atol=1e-12)
+    with pytest.raises(ValueError, match="ik_4d observes orientation_obs='quaternion'.*use ik_4d_frame"):
+        ik.reset(jax.random.PRNGKey(5), params)
