@@ -55,6 +55,7 @@ def test_ci_builds_strictly_and_shows_warnings():
     assert not re.search(r"\s(-q|--quiet)\b", command), "--quiet drops the warnings before --strict counts them"
 
 
+@pytest.mark.slow
 @needs_docs
 def test_a_broken_anchor_fails_the_build(tmp_path):
     code, out = build_with(tmp_path, "docs/index.md", "\n[planted](speed.md#no-such-section)\n")
@@ -62,6 +63,7 @@ def test_a_broken_anchor_fails_the_build(tmp_path):
     assert "'speed.md#no-such-section'" in out and "does not contain an anchor" in out, out
 
 
+@pytest.mark.slow
 @needs_docs
 def test_an_undocumented_public_name_fails_the_build(tmp_path):
     plant = '\n\ndef planted_undocumented():\n    return None\n\n\n__all__ += ["planted_undocumented"]\n'
