@@ -336,3 +336,53 @@ def test_stagger_starts_cuts_each_first_episode_once_at_a_random_step(antithetic
     plain = init(config.replace(stagger_starts=False), env, env.default_params(), jax.random.PRNGKey(0))
     _, traj = jax.jit(lambda s: collect(config.replace(stagger_starts=False), env, env.default_params(), s))(plain)
     assert not np.asarray(traj.cut).any() and np.all(np.flatnonzero(np.asarray(traj.done)[:, 0]) + 1 == [5, 10, 15])
+
+
+class _ScoredFailures(BanditEnv):
+    failure_reward = -10.0  # as the benchmark tasks': a failed step is learned from
+
+
+def _episodes(rewards, ends):
+    """Per env, the episodes of a time-major stream (T, N): (rewards, failed) of each one that ended."""
+    out = []
+    for n in range(rewards.shape[1]):
+        current = []
+        for t in range(rewards.shape[0]):
+            current.append(rewards[t, n])
+            if ends[t, n]:
+                out.append((current, current[-1] == -10.0))
+                current = []
+    return out
+
+
+def expected_window(rewards, ends, gamma=0.99):
+    """The training metrics' means, computed episode by episode from the stream."""
+    from gvsjax.utils.episode_returns import discounted_returns
+
+    eps = _episodes(np.asarray(rewards), np.asarray(ends))
+    lengths = np.array([len(r) for r, _ in eps])
+    padded = np.zeros((len(eps), lengths.max()))
+    for i, (r, _) in enumerate(eps):
+        padded[i, :len(r)] = r
+    out = discounted_returns(padded, lengths, gamma)
+    return {"train_discounted_return_average": out["average"].mean(), "train_discounted_return_start":
+            out["start"].mean(), "train_return": out["undiscounted"].mean(),
+            "train_failed_fraction": np.mean([f for _, f in eps]), "train_window_episodes": len(eps)}
+
+
+def test_a_scored_failure_is_terminal_learned_from_and_counted_over_its_length():
+    env = _ScoredFailures(episode_length=3, invalid_prob=0.2)
+    config = FAST.replace(num_envs=16, num_steps=12, num_minibatches=1)
+    state = init(config, env, env.default_params(), jax.random.PRNGKey(0))
+    state, traj = jax.jit(lambda s: collect(config, env, env.default_params(), s))(state)
+    invalid = ~np.asarray(traj.valid)
+    assert invalid.any() and (~invalid).any()
+    assert np.all(np.asarray(traj.done)[invalid]) and np.all(np.asarray(traj.reward)[invalid] == -10.0)
+    assert np.all(np.asarray(traj.learn))  # nothing masked out of the loss
+    from gvsjax.utils.episode_returns import window_metrics
+
+    got = jax.tree.map(float, window_metrics(state.window))
+    want = expected_window(traj.reward, traj.done)
+    assert 0 < want["train_failed_fraction"] < 1 and want["train_window_episodes"] < 500
+    for k, v in want.items():
+        assert got[k] == pytest.approx(v, rel=1e-5), k

@@ -178,3 +178,23 @@ def test_cli_errors_name_the_key(bandit, capsys, args, words):
     assert train.main(["task=bandit", *args, "progress=false"]) == 2
     err = capsys.readouterr().err
     assert all(w in err for w in words), err
+
+
+def test_a_scored_failure_is_stored_terminal_and_learned_from_and_counted_over_its_length():
+    """With a ``failure_reward`` (the benchmark tasks' -10) a diverged step is a terminal transition
+    with that reward that weighs in the losses, and the logged returns count its episode."""
+    from test_ppo_train import _ScoredFailures, expected_window
+
+    env = _ScoredFailures(episode_length=3, invalid_prob=0.2)
+    config = sac.SACConfig(num_envs=8, buffer_size=256, batch_size=8, hidden=(8,), learning_starts=10_000)
+    state = sac.init(config, env, env.default_params(), jax.random.PRNGKey(1))
+    step = jax.jit(lambda s: sac.iteration(config, env, env.default_params(), s))
+    for _ in range(20):
+        state, metrics = step(state)
+    data = jax.tree.map(lambda x: np.asarray(x[:160]).reshape((20, 8) + x.shape[1:]), state.buffer.data)
+    failed = data.reward == -10.0
+    assert failed.any()
+    assert np.all(data.discount[failed] == 0.0) and np.all(data.valid == 1.0)
+    want = expected_window(data.reward, data.discount == 0.0)
+    for k, v in want.items():
+        assert float(metrics[k]) == pytest.approx(v, rel=1e-5), k

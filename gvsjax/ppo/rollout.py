@@ -21,7 +21,7 @@ from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import action_log_prob
 from gvsjax.ppo.networks import make_network, obs_size
 from gvsjax.tasks.base import auto_reset_step
-from gvsjax.utils import sharding
+from gvsjax.utils import episode_returns, sharding
 
 PyTree = Any
 
@@ -39,6 +39,8 @@ class TrainState:
     episodes: jax.Array  # int32, episodes finished (diverged ones included)
     episode_return: jax.Array  # (N,) float32, return so far of each running episode
     cut_at: jax.Array  # (N,) int32, steps left before the running episode is cut (< 0: never)
+    running: episode_returns.Running  # (N,) discounted returns of the running episodes
+    window: episode_returns.Window  # those of the last finished episodes
 
 
 @struct.dataclass
@@ -49,10 +51,11 @@ class Rollout:
     action: jax.Array  # (T, N, A) unclipped sample
     log_prob: jax.Array  # (T, N)
     value: jax.Array  # (T, N)
-    reward: jax.Array  # (T, N), 0 where invalid
+    reward: jax.Array  # (T, N), the task's failure_reward (or 0) where invalid
     done: jax.Array  # (T, N) bool, episode ended (True also where invalid or cut)
     cut: jax.Array  # (T, N) bool, the episode was cut short by ``stagger_starts``
     valid: jax.Array  # (T, N) bool, physics did not diverge
+    learn: jax.Array  # (T, N) bool, the step weighs in the loss (valid, or a scored failure)
     episode_return: jax.Array  # (T, N) return of the episode ending here, else 0
     info: dict[str, jax.Array]  # float (T, N) entries of the env's info
 
@@ -84,7 +87,7 @@ def shardings(config: PPOConfig):
 
 
 # TrainState fields batched over num_envs; the others are the same on every device
-_ENV_FIELDS = ("env_state", "last_obs", "episode_return", "cut_at")
+_ENV_FIELDS = ("env_state", "last_obs", "episode_return", "cut_at", "running")
 
 
 def place(config: PPOConfig, state: TrainState) -> TrainState:
@@ -104,10 +107,12 @@ def collect(
 ) -> tuple[TrainState, Rollout]:
     """Roll the stochastic policy for ``num_steps`` steps in every env (auto-reset).
 
-    A step with ``info["valid"] == False`` is treated as terminal with reward 0
-    (the raw reward may be NaN) and is masked out of the loss downstream. The
-    env must itself report ``done`` on such a step (base.py's contract) so that
-    ``auto_reset_step`` replaces the diverged state.
+    A step with ``info["valid"] == False`` is terminal with the task's
+    ``failure_reward`` and learned from; with ``failure_reward`` None its reward
+    is 0 (the raw reward may be NaN) and it is masked out of the loss downstream.
+    The env must itself report ``done`` on such a step (base.py's contract) so
+    that ``auto_reset_step`` replaces the diverged state. Every step also feeds
+    the discounted returns of the finished episodes (``state.window``).
     """
     # flax types apply() as maybe returning (output, mutated variables) too; without
     # mutable= it returns the output: (mean, log_std, value)
@@ -118,8 +123,11 @@ def collect(
     env_step = sharding.split_batch(jax.vmap(auto_reset_step(env), in_axes=(0, 0, 0, None, 0)),
                                     envs and envs.mesh, (0, 0, 0, None, 0))
 
+    learn_failures = env.failure_reward is not None
+
     def one_step(carry, keys):  # keys: (n + 1,) = action key, one key per env
-        env_state, obs, episode_return, cut_at = sharding.constrain(carry, envs)  # env axis split
+        per_env, window = carry
+        env_state, obs, episode_return, cut_at, running = sharding.constrain(per_env, envs)  # env axis split
         mean, log_std, value = apply_fn(state.params, obs)
         action = mean + jnp.exp(log_std) * _noise(config, keys[0], mean.shape, mean.dtype)
         env_keys = pair_up(keys[1:n // 2 + 1]) if config.antithetic else keys[1:]
@@ -130,8 +138,9 @@ def collect(
         cut = cut & ~ended
         done = ended | cut
         cut_at = jnp.where(done | (cut_at < 0), -1, cut_at - 1)
-        reward = jnp.where(valid, reward, 0.0).astype(jnp.float32)
+        reward = jnp.where(valid, reward, env.failure_reward if learn_failures else 0.0).astype(jnp.float32)
         episode_return = episode_return + reward
+        running, window = episode_returns.track(running, window, reward, ended, ~valid, cut, env.return_discount)
         floats = {
             k: v.astype(jnp.float32)
             for k, v in info.items()
@@ -146,16 +155,17 @@ def collect(
             done=done,
             cut=cut,
             valid=valid,
+            learn=valid | learn_failures,
             episode_return=jnp.where(ended, episode_return, 0.0),
             info=floats,
         )
-        carry = (env_state, next_obs.astype(jnp.float32), jnp.where(done, 0.0, episode_return), cut_at)
-        return carry, step
+        carry = (env_state, next_obs.astype(jnp.float32), jnp.where(done, 0.0, episode_return), cut_at, running)
+        return (carry, window), step
 
     key, key_steps = jax.random.split(state.key)
-    (env_state, obs, episode_return, cut_at), trajectory = jax.lax.scan(
+    ((env_state, obs, episode_return, cut_at, running), window), trajectory = jax.lax.scan(
         one_step,
-        (state.env_state, state.last_obs, state.episode_return, state.cut_at),
+        ((state.env_state, state.last_obs, state.episode_return, state.cut_at, state.running), state.window),
         # all keys split up front: each random call inside the scan costs compile time
         jax.random.split(key_steps, (config.num_steps, n + 1)),
     )
@@ -166,14 +176,17 @@ def collect(
         key=key,
         episode_return=episode_return,
         cut_at=cut_at,
+        running=running,
+        window=window,
         episodes=state.episodes + jnp.sum(trajectory.done & ~trajectory.cut, dtype=jnp.int32),
     )
     return state, trajectory
 
 
 def episode_metrics(trajectory: Rollout) -> dict[str, jax.Array]:
-    """Means over episodes that *completed validly* in this rollout (NaN if none; an
-    episode cut short by ``stagger_starts`` does not count).
+    """Means over episodes that *completed* in this rollout (NaN if none): validly, or by a
+    failure the task scores (``failure_reward``); an episode cut short by ``stagger_starts``
+    does not count.
 
     ``episode_reward`` is the undiscounted return; ``episode_<k>`` is scalar
     float info entry ``k`` at the episode's last step (e.g. ``episode_cost``;
@@ -181,7 +194,7 @@ def episode_metrics(trajectory: Rollout) -> dict[str, jax.Array]:
     ``episodes_completed`` counts those episodes, ``invalid_steps`` the
     diverged steps (each also ended an episode).
     """
-    completed = trajectory.done & trajectory.valid & ~trajectory.cut
+    completed = trajectory.done & trajectory.learn & ~trajectory.cut
     count = jnp.sum(completed)
 
     def mean_over_completed(x):

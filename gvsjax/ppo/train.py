@@ -39,7 +39,7 @@ from gvsjax.ppo.config import PPOConfig
 from gvsjax.ppo.losses import Batch, gae, ppo_loss
 from gvsjax.ppo.networks import make_network
 from gvsjax.ppo.rollout import TrainState, collect, env_keys, episode_metrics, pair_up, shardings
-from gvsjax.utils import sharding
+from gvsjax.utils import episode_returns, sharding
 
 PyTree = Any
 
@@ -124,6 +124,8 @@ def init(config: PPOConfig, env, env_params: PyTree, key: jax.Array) -> TrainSta
         episodes=jnp.zeros((), jnp.int32),
         episode_return=sharding.constrain(jnp.zeros((config.num_envs,), jnp.float32), envs),
         cut_at=sharding.constrain(cut_at, envs),
+        running=sharding.constrain(episode_returns.running(config.num_envs), envs),
+        window=sharding.constrain(episode_returns.window(), everywhere),
     )
 
 
@@ -135,7 +137,8 @@ def update(
 
     Returns scalar metrics: loss terms, ``approx_kl``, ``clip_fraction``,
     ``grad_norm`` (means over all minibatch steps), episode metrics of the
-    rollout (see ``episode_metrics``), ``learning_rate``, ``clip_eps``,
+    rollout (see ``episode_metrics``), the discounted returns of the last
+    finished episodes (``train_*``, ``gvsjax.utils.episode_returns``), ``learning_rate``, ``clip_eps``,
     ``update`` (index of this update) and ``episodes`` (total so far).
     ``learning_rate``: see ``phase_hyperparams``.
     """
@@ -158,7 +161,7 @@ def update(
         value=flat(trajectory.value),
         advantage=flat(advantage),
         target=flat(target),
-        weight=flat(trajectory.valid).astype(jnp.float32),
+        weight=flat(trajectory.learn).astype(jnp.float32),
     )
     # every device gets the whole rollout: the shuffle and the Adam steps are then
     # the single-device computation (small next to the physics of the rollout)
@@ -205,6 +208,7 @@ def update(
     state = dataclasses.replace(state, params=params, opt_state=opt_state, key=key, update=index + 1)
     metrics["epochs_run"] = jnp.sum(ran, dtype=jnp.int32)
     metrics.update(episode_metrics(trajectory))
+    metrics.update(episode_returns.window_metrics(state.window))
     metrics.update(
         learning_rate=lr, clip_eps=clip_eps, update=index, episodes=state.episodes
     )

@@ -2,8 +2,9 @@
 and Applications"): the twin critics' TD error, the actor's entropy-regularised value and the
 temperature's entropy constraint.
 
-Every transition carries ``valid`` (1 = use, 0 = the physics diverged): invalid ones are
-zeroed before use, so NaN stored in them reaches neither a loss nor its gradient.
+Every transition carries ``valid`` (1 = use; 0 = the physics diverged in a task without a
+``failure_reward``): invalid ones are zeroed before use, so NaN stored in them reaches neither a
+loss nor its gradient.
 """
 
 from __future__ import annotations

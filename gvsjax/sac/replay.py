@@ -11,7 +11,8 @@ from flax import struct
 class Transitions:
     """A batch of transitions ``(..., ...)``. ``discount`` is 0 where the episode terminated
     (1 where it goes on, or was stopped by a time limit); ``valid`` is 0 where the physics
-    diverged: such a transition is stored but weighs nothing in a loss."""
+    diverged in a task without a ``failure_reward``: such a transition is stored but weighs nothing
+    in a loss (with one, it is a terminal transition with that reward, and valid)."""
 
     obs: jax.Array  # (..., O) float32
     action: jax.Array  # (..., A) float32, in [-1, 1]

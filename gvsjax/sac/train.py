@@ -9,7 +9,10 @@ One iteration steps every environment once (uniform random actions for the first
 ``learning_starts`` env steps, then samples of the policy), stores the transitions and takes
 ``updates_per_iteration`` gradient steps on minibatches drawn from the replay buffer. An episode
 that ends by the task's time limit (``Environment.time_limit``) is bootstrapped through its last
-step; one that terminates, or whose physics diverged, is not.
+step; one that terminates, or whose physics diverged, is not. A diverged step carries the task's
+``failure_reward`` and is learned from (with ``failure_reward`` None it is stored but masked).
+Every step also feeds the discounted returns of the last finished episodes
+(``gvsjax.utils.episode_returns``), logged as ``train_*``.
 
 The state's ``update`` counts iterations, as PPO's counts updates, so the command line drives both
 alike. Numerics are float32, whatever the physics uses.
@@ -30,6 +33,7 @@ from flax import struct
 from gvsjax.sac import losses, replay
 from gvsjax.sac.config import SACConfig
 from gvsjax.sac.networks import make_actor, make_critic, squashed_sample
+from gvsjax.utils import episode_returns
 
 PyTree = Any
 
@@ -48,6 +52,8 @@ class SACState:
     episodes: jax.Array  # int32, episodes finished (diverged ones included)
     episode_return: jax.Array  # (N,) float32, return so far of each running episode
     gradient_steps: jax.Array  # int32
+    running: episode_returns.Running  # (N,) discounted returns of the running episodes
+    window: episode_returns.Window  # those of the last finished episodes
 
 
 def num_updates(config: SACConfig, episode_length: int) -> int:
@@ -76,7 +82,8 @@ def init(config: SACConfig, env, env_params: PyTree, key: jax.Array) -> SACState
         buffer=replay.empty(config.buffer_size, env.obs_size, env.action_size),
         env_state=env_state, last_obs=obs.astype(jnp.float32), key=key,
         update=jnp.zeros((), jnp.int32), episodes=jnp.zeros((), jnp.int32),
-        episode_return=jnp.zeros((config.num_envs,), jnp.float32), gradient_steps=jnp.zeros((), jnp.int32))
+        episode_return=jnp.zeros((config.num_envs,), jnp.float32), gradient_steps=jnp.zeros((), jnp.int32),
+        running=episode_returns.running(config.num_envs), window=episode_returns.window())
 
 
 def _act_and_step(config: SACConfig, env, env_params, state: SACState, key: jax.Array):
@@ -96,26 +103,30 @@ def _act_and_step(config: SACConfig, env, env_params, state: SACState, key: jax.
     done = jnp.asarray(done, bool)
     ended = done | ~valid
     terminal = ~valid | (done & (not env.time_limit))
-    reward = jnp.where(valid, reward, 0.0).astype(jnp.float32)
+    learn_failures = env.failure_reward is not None
+    reward = jnp.where(valid, reward, env.failure_reward if learn_failures else 0.0).astype(jnp.float32)
     obs = obs.astype(jnp.float32)
     batch = replay.Transitions(obs=state.last_obs, action=action, reward=reward,
                                discount=1.0 - terminal.astype(jnp.float32),
-                               next_obs=jnp.where(valid[:, None], obs, 0.0), valid=valid.astype(jnp.float32))
+                               next_obs=jnp.where(valid[:, None], obs, 0.0),
+                               valid=(valid | learn_failures).astype(jnp.float32))
+    running, window = episode_returns.track(state.running, state.window, reward, ended, ~valid,
+                                            jnp.zeros_like(ended), env.return_discount)
     episode_return = state.episode_return + reward
-    completed = ended & valid
+    completed = ended & (valid | learn_failures)  # a failed episode counts when its failure is scored
     count = jnp.sum(completed)
     mean_done = lambda x: jnp.where(count > 0, jnp.sum(jnp.where(completed, x, 0.0)) / jnp.maximum(count, 1),  # noqa: E731
                                     jnp.nan)
     metrics = {f"episode_{k}": mean_done(v.astype(jnp.float32)) for k, v in info.items()
                if jnp.issubdtype(v.dtype, jnp.floating) and v.shape == (n,)}
     metrics.update(episode_reward=mean_done(episode_return), episodes_completed=count.astype(jnp.int32),
-                   invalid_steps=jnp.sum(~valid, dtype=jnp.int32))
+                   invalid_steps=jnp.sum(~valid, dtype=jnp.int32), **episode_returns.window_metrics(window))
     restart = lambda r, s: jnp.where(ended.reshape((n,) + (1,) * (s.ndim - 1)), r, s)  # noqa: E731
     state = dataclasses.replace(
         state, env_state=jax.tree.map(restart, state_reset, env_state), last_obs=restart(obs_reset.astype(jnp.float32),
                                                                                          obs),
         episode_return=jnp.where(ended, 0.0, episode_return),
-        episodes=state.episodes + jnp.sum(ended, dtype=jnp.int32))
+        episodes=state.episodes + jnp.sum(ended, dtype=jnp.int32), running=running, window=window)
     return state, batch, metrics
 
 

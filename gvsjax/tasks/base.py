@@ -24,7 +24,9 @@ Conventions (fixed for all tasks):
   physical quantities and clips out-of-range values.
 * ``info["valid"]`` is False when the physics diverged (NaN/inf, or a state
   beyond the task's documented magnitude bound, see ``bounded``); such a step
-  ends the episode and its reward must not be used for learning.
+  ends the episode. Its reward is the task's ``failure_reward`` when that is a
+  number (a terminal transition the learners learn from); with None it must
+  not be used for learning (the learners mask it out).
 * A non-finite action (``sanitize_action``) is replaced by 0, the centre of
   the box, simulated, and flagged ``info["valid"] = False``: inside ``jit``
   nothing can be raised on a value, and a flag keeps a batch running. A wrong
@@ -180,6 +182,11 @@ class Environment:
     randomizable: ClassVar[Mapping[str, Scale]] = ROBOT_MATERIAL
     # True: ``evaluate`` also takes a ``Controller`` (the closed-loop tasks; ``gvsjax.mpc``)
     accepts_controller: ClassVar[bool] = True
+    # the reward of a step whose simulation failed (``info["valid"]`` False), learned from as a terminal
+    # transition; None: such a step is masked out of the losses
+    failure_reward: ClassVar[float | None] = None
+    # the discount of the discounted returns training logs (gvsjax.utils.episode_returns)
+    return_discount: ClassVar[float] = 0.99
     # True: ``episode_length`` is a time limit on a task that would go on (nothing in the state
     # ends it), so an off-policy learner (``gvsjax.sac``) bootstraps through the last step
     time_limit: ClassVar[bool] = False

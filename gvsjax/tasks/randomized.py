@@ -100,7 +100,8 @@ class Randomized(Environment):
         self.task, self.ranges, self.observe = task, tuple(ranges), bool(observe)
         # instance attributes shadow the task's class attributes: the wrapper is that task
         for key in ("name", "action_size", "episode_length", "ppo_defaults", "train_variants", "rows_file",
-                    "animation_keys", "animates_policy", "randomizable", "train_sim_dtype"):
+                    "animation_keys", "animates_policy", "randomizable", "train_sim_dtype", "failure_reward",
+                    "return_discount"):
             setattr(self, key, getattr(task, key))
         self.obs_size = task.obs_size + (len(ranges) if observe else 0)  # type: ignore[misc]
         self._half = np.array([r for _, r in ranges])

@@ -94,13 +94,16 @@ def rows_of(metrics: dict, wall: float) -> list[dict[str, float]]:
 def non_finite(rows: list[dict[str, float]], state) -> str | None:
     """What became NaN/inf in a call's metric rows or the new weights/optimizer state, else None.
 
-    Checked: every loss/optimisation metric, and ``episode_reward`` when an
-    episode completed. Not checked: the other ``episode_<info>`` means (NaN
-    whenever no episode ended in the rollout; diagnostics, not learned from).
+    Checked: every loss/optimisation metric, ``episode_reward`` when an
+    episode completed, the ``train_*`` returns once an episode has ended. Not
+    checked: the other ``episode_<info>`` means (NaN whenever no episode ended
+    in the rollout; diagnostics, not learned from).
     """
     for r in rows:
         for k, v in r.items():
             if k.startswith("episode_") and (k != "episode_reward" or r.get("episodes_completed", 0) == 0):
+                continue
+            if k.startswith("train_") and r.get("train_window_episodes", 0) == 0:
                 continue
             if not math.isfinite(v):
                 return f"metric {k}={v} at update {int(r['update'])}"

@@ -50,7 +50,6 @@ class EpisodeState:
     obstacles: jax.Array  # (m, 2, 3) m, capsule ends (m = 0 without obstacles)
     deepest: jax.Array  # () m, the deepest penetration into an obstacle so far
     step: jax.Array  # () int32
-    score: jax.Array  # () sum_t r_t (1 - gamma^(t+1)) / (1 - gamma) so far: the benchmark's return, times T
 
 
 class CurvatureTask(Environment):
@@ -67,6 +66,8 @@ class CurvatureTask(Environment):
     ppo_defaults = PPO_DEFAULTS
     sac_defaults = SAC_DEFAULTS
     time_limit = True  # the published episodes end by a timeout; their SAC bootstraps through it
+    failure_reward = -10.0  # theirs: a failed simulation (or a reward below -10) ends the episode with -10
+    return_discount = control.GAMMA
     # the published SAC's final discounted return (averaged over start steps), read from their results figure
     published_return: ClassVar[float]
     # append the tip-to-target vector to the observation (the benchmark's observation leaves it out)
@@ -146,13 +147,10 @@ class CurvatureTask(Environment):
                               tip_R=keep(R, state.tip_R), deepest=jnp.maximum(state.deepest, depth),
                               step=state.step + 1)
         new, reward, info = self.after(key, moved, params)
-        reward = jnp.where(valid, reward, -10.0)  # the benchmark's penalty for a failed simulation
+        valid = valid & (reward >= self.failure_reward)  # NaN fails too
+        reward = jnp.where(valid, reward, self.failure_reward)
         done = (new.step >= self.episode_length) | ~valid
-        score = new.score + reward * (1.0 - control.GAMMA ** new.step) / (1.0 - control.GAMMA)
-        new = dataclasses.replace(new, score=score)
-        # at an episode's last step: its discounted return averaged over the start steps (as evaluate's)
-        info = {**info, "valid": valid, "truncated": jnp.zeros((), bool), "depth": depth, "reward": reward,
-                "benchmark_return": score / self.episode_length}
+        info = {**info, "valid": valid, "truncated": jnp.zeros((), bool), "depth": depth, "reward": reward}
         return self.observe(new, params), new, reward, done, info
 
     # ------------------------------------------------------------------ evaluation
@@ -175,7 +173,8 @@ class CurvatureTask(Environment):
         returns = control.discounted_returns(out["reward"], out["valid"])
         metrics: dict[str, Any] = {
             "n_episodes": int(n_episodes), "valid_fraction": float(np.mean(out["valid"][:, -1])),
-            "gamma": control.GAMMA,
+            "failed_fraction": float(np.mean(~out["valid"][:, -1])),
+            "actions": "deterministic (the policy's mean)", "gamma": control.GAMMA,
             "discounted_return_average": _stats(returns["average"]),
             "discounted_return_start": _stats(returns["start"]),
             "return": _stats(returns["undiscounted"]),
@@ -219,8 +218,7 @@ def _blank(q: jax.Array, directions: int, fields: dict) -> dict:
     base = dict(q=q, qd=jnp.zeros_like(q), kappa=jnp.zeros((N_POINTS, directions)),
                 twist=jnp.zeros(N_POINTS), node_p=jnp.zeros((10, 3)), node_v=jnp.zeros((10, 3)),
                 tip_R=jnp.eye(3), target=jnp.zeros(3), target_velocity=jnp.zeros(3), goal=jnp.zeros(()),
-                obstacles=jnp.zeros((0, 2, 3)), deepest=jnp.zeros(()), step=jnp.zeros((), jnp.int32),
-                score=jnp.zeros(()))
+                obstacles=jnp.zeros((0, 2, 3)), deepest=jnp.zeros(()), step=jnp.zeros((), jnp.int32))
     return {**base, **fields}
 
 

@@ -26,6 +26,7 @@ from gvsjax.core.kinematics import point_states
 from gvsjax.core.model import Robot
 from gvsjax.core.simulation import simulate
 from gvsjax.core.validation import require
+from gvsjax.utils import episode_returns
 
 N_POINTS = 5  # control points
 GAMMA = 0.99  # the benchmark's discount (its SAC's), used for the published returns
@@ -131,16 +132,15 @@ def with_sim_dtype(arm: ArmControl, sim_dtype: str) -> ArmControl:
 
 
 def discounted_returns(rewards: np.ndarray, valid: np.ndarray | None = None, gamma: float = GAMMA) -> dict:
-    """The benchmark's two discounted returns of episodes' rewards (n, T), as its training logs them:
-    ``start``, sum_t gamma^t r_t from the first step; ``average``, the discounted return-to-go averaged
-    over the episode's steps, (1/T) sum_t r_t (1 - gamma^(t+1)) / (1 - gamma). Per episode (n,)."""
+    """The benchmark's discounted returns of recorded episodes' rewards (n, T), each counted over its
+    actual length: up to and including its first step with ``valid`` (n, T) False (the failed step's
+    reward counts), else all T (``gvsjax.utils.episode_returns.discounted_returns``). Per episode (n,):
+    ``average``, ``start``, ``undiscounted``."""
     r = np.asarray(rewards, float)
-    if valid is not None:
-        r = np.where(valid, r, 0.0)
-    t = np.arange(r.shape[1])
-    start = r @ gamma**t
-    average = (r @ ((1.0 - gamma ** (t + 1)) / (1.0 - gamma))) / r.shape[1]
-    return {"start": start, "average": average, "undiscounted": r.sum(1)}
+    T = r.shape[1]
+    ok = np.ones(r.shape, bool) if valid is None else np.asarray(valid, bool)
+    lengths = np.where(ok.all(1), T, np.argmin(ok, 1) + 1)
+    return episode_returns.discounted_returns(r, lengths, gamma)
 
 
 __all__: list[Any] = ["N_POINTS", "GAMMA", "ArmControl", "layout", "check", "n_actions", "apply", "rest_values",
