@@ -41,7 +41,7 @@ EPISODES = {
     "balance": "10 s of base torque swinging the paper's arm up and holding it upright",
 }
 # the benchmark tasks have no eval file: their row summarises tasks_benchmark.md's findings
-BENCHMARK_ROW = ["[`follow_target`, `ik_4d`, `obstacles_2d`, `obstacles_3d`](tasks_benchmark.md)",
+BENCHMARK_ROW = ["[`follow_target`, `ik_4d` (`ik_4d_frame`), `obstacles_2d`, `obstacles_3d`](tasks_benchmark.md)",
                  "the soft-arm benchmark of Choi & Tong (natural-curvature control)",
                  "SAC: 81-89% of the published return on `follow_target` at their 5M steps with their network "
                  "(~60% with a smaller one), ~80% on `ik_4d` at 2M (PPO: a sixth and a ninth); obstacles in progress"]

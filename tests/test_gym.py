@@ -19,7 +19,8 @@ from gvsjax.tasks import basketball, pickplace  # noqa: E402
 # arm's control step); their functional env is checked under jit and vmap in the default run
 EXTENDED_IDS = ("gvsjax/Track3D-v0", "gvsjax/Track3DMuscle-v0", "gvsjax/ReachPose-v0", "gvsjax/ReachPoseMuscle-v0",
                 "gvsjax/Balance-v0", "gvsjax/ReachObstacles-v0", "gvsjax/ReachObstacles2D-v0", "gvsjax/Throw3D-v0",
-                "gvsjax/FollowTarget-v0", "gvsjax/IK4D-v0", "gvsjax/Obstacles2D-v0", "gvsjax/Obstacles3D-v0")
+                "gvsjax/FollowTarget-v0", "gvsjax/IK4D-v0", "gvsjax/IK4DFrame-v0", "gvsjax/Obstacles2D-v0",
+                "gvsjax/Obstacles3D-v0")
 
 
 @pytest.fixture(scope="module")

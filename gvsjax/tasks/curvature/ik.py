@@ -6,10 +6,15 @@ As published (Choi & Tong, arXiv 2511.06667): a fixed target uniform in x, y in
 [m1, m2, t] (``rewards.benchmark_frame``; at rest a yaw of pi). 101 steps of 0.1 s,
 15 actions: the 10 bending ones, then a rest twist per control point. Reward
 -d^2 - 0.5 o^2 with the distance and orientation bonuses (``rewards.pose_reward``),
-o = 1 - <q_tip, q_target>^2. Observation (89,): turning angles (10) and twists (5),
-node positions and velocities (60), the target position (3), (cos psi, sin psi) and
-the tip frame (9). The published observation gives the two orientations as
-quaternions (8 numbers); a rotation matrix has no sign ambiguity.
+o = 1 - <q_tip, q_target>^2.
+
+Observation (86,), the published one: turning angles (10) and twists (5), node
+positions and velocities (60), the target position (3), then the target's and the
+tip frame's quaternions (x, y, z, w), 4 each, with SciPy's sign (``rewards.quaternion``;
+their fields, concatenated in alphabetical order). ``orientation_obs="frame"``
+(``ik_4d_frame``, 89 values) gives instead (cos psi, sin psi) and the tip frame's
+rotation matrix (9), which has no sign flip: SciPy's quaternion changes sign where its
+largest component changes.
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ class IKParams:
     box_high: tuple = (0.6, 0.6, 0.9)  # m
     yaw_range: float = float(np.pi / 2)  # rad, the target's yaw is uniform in [-yaw_range, yaw_range]
     episode_steps: int = struct.field(pytree_node=False, default=101)
+    # the orientations observed: "quaternion" (the published 86 values) or "frame" (89: cos, sin, R)
+    orientation_obs: str = struct.field(pytree_node=False, default="quaternion")
 
 
 def orientation_error(state: EpisodeState) -> jax.Array:
@@ -45,7 +52,7 @@ class IK4D(CurvatureTask):
     """Reach a target position and tip yaw."""
 
     name = "ik_4d"
-    obs_size = 89
+    obs_size = 86
     action_size = 15
     episode_length = 101
     published_return = 197.0
@@ -53,8 +60,17 @@ class IK4D(CurvatureTask):
     ppo_defaults = {**CurvatureTask.ppo_defaults, "total_episodes": 20_000}
     sac_defaults = {**CurvatureTask.sac_defaults, "total_episodes": 20_000}
 
+    orientation_obs = "quaternion"
+
     def default_params(self) -> IKParams:
-        return IKParams()
+        return IKParams(orientation_obs=self.orientation_obs)
+
+    def _check(self, params: IKParams) -> None:
+        super()._check(params)
+        if params.orientation_obs != self.orientation_obs:
+            raise ValueError(f"{self.name} observes orientation_obs={self.orientation_obs!r} ({self.obs_size} values); "
+                             f"got IKParams.orientation_obs={params.orientation_obs!r} (use "
+                             f"{'ik_4d' if params.orientation_obs == 'quaternion' else 'ik_4d_frame'})")
 
     def start(self, key, params: IKParams) -> dict:
         k_pos, k_yaw = jax.random.split(key)
@@ -68,8 +84,11 @@ class IK4D(CurvatureTask):
         return state, rewards.pose_reward(d, o), {"distance": d, "orientation": o}
 
     def task_obs(self, state: EpisodeState, params: IKParams) -> jax.Array:
-        return jnp.concatenate([state.target, jnp.stack([jnp.cos(state.goal), jnp.sin(state.goal)]),
-                                rewards.benchmark_frame(state.tip_R).reshape(-1)])
+        frame = rewards.benchmark_frame(state.tip_R)
+        if params.orientation_obs == "frame":
+            return jnp.concatenate([state.target, jnp.stack([jnp.cos(state.goal), jnp.sin(state.goal)]),
+                                    frame.reshape(-1)])
+        return jnp.concatenate([state.target, rewards.yaw_quaternion(state.goal), rewards.quaternion(frame)])
 
     def _final(self, out: dict) -> tuple[np.ndarray, np.ndarray]:
         d = np.where(out["valid"][:, -1], out["distance"][:, -1], np.inf)
@@ -95,3 +114,11 @@ class IK4D(CurvatureTask):
         return (f"eval on {metrics['n_episodes']} episodes: discounted return {r:.1f}; final error median "
                 f"{100 * d['median']:.2f} cm, {a['median']:.2f} deg; within 2 cm & 5 deg "
                 f"{100 * metrics['within_2cm_5deg']:.1f}%, 5 cm & 10 deg {100 * metrics['within_5cm_10deg']:.1f}%")
+
+
+class IK4DFrame(IK4D):
+    """ik_4d observing the target's yaw as (cos, sin) and the tip frame as a rotation matrix (89 values)."""
+
+    name = "ik_4d_frame"
+    obs_size = 89
+    orientation_obs = "frame"

@@ -35,6 +35,31 @@ def benchmark_frame(R_tip: jax.Array) -> jax.Array:
     return jnp.stack([-R_tip[:, 1], -R_tip[:, 2], R_tip[:, 0]], axis=1)
 
 
+def quaternion(R: jax.Array) -> jax.Array:
+    """The unit quaternion (x, y, z, w), scalar last, of the rotation matrix ``R`` (3, 3), with the sign
+    SciPy's ``Rotation.from_matrix(R).as_quat()`` gives it (the benchmark's observation): the largest of
+    |x|, |y|, |z|, |w| is positive, found by comparing R's diagonal entries and its trace."""
+    tr = jnp.trace(R)
+    choice = jnp.argmax(jnp.stack([R[0, 0], R[1, 1], R[2, 2], tr]))  # the first of equal ones, as NumPy's
+    rows = []
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q = [None] * 4
+        q[i], q[j], q[k] = 1.0 - tr + 2.0 * R[i, i], R[j, i] + R[i, j], R[k, i] + R[i, k]
+        q[3] = R[k, j] - R[j, k]
+        rows.append(jnp.stack(q))
+    rows.append(jnp.stack([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1], 1.0 + tr]))
+    q = jnp.stack(rows)[choice]
+    return q / jnp.linalg.norm(q)
+
+
+def yaw_quaternion(yaw: jax.Array) -> jax.Array:
+    """(x, y, z, w) of the rotation by ``yaw`` about world z: (0, 0, sin(yaw/2), cos(yaw/2)), as SciPy's
+    ``from_euler("xyz", (0, 0, yaw))`` gives it (w > 0 for |yaw| < pi)."""
+    z = jnp.zeros_like(yaw)
+    return jnp.stack([z, z, jnp.sin(0.5 * yaw), jnp.cos(0.5 * yaw)])
+
+
 def yaw_frame(yaw: jax.Array) -> jax.Array:
     """The rotation by ``yaw`` about world z (roll = pitch = 0)."""
     c, s = jnp.cos(yaw), jnp.sin(yaw)
@@ -61,5 +86,5 @@ def move_target(key: jax.Array, position, velocity, low, high, speed, turn_proba
     return position + velocity * dt, velocity
 
 
-__all__ = ["reach_reward", "pose_reward", "orientation_distance", "benchmark_frame", "yaw_frame",
-           "target_direction", "move_target"]
+__all__ = ["reach_reward", "pose_reward", "orientation_distance", "benchmark_frame", "quaternion", "yaw_quaternion",
+           "yaw_frame", "target_direction", "move_target"]
