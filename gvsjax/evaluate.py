@@ -7,9 +7,11 @@
 
 ``checkpoint`` is a run folder (holding checkpoint.ckpt) or the checkpoint
 file; ``task`` (optional) must match the checkpoint's. Writes into ``out``
-(default: the run folder): ``eval.json`` (the task's metrics), the task's
-per-episode table (basketball: ``eval_throws.csv``), its figures, and
-``learning_curve.png`` (paper Fig. 3) when the folder has ``metrics.csv``.
+(default: the run folder): ``eval.json`` (the task's metrics of the deterministic
+policy; beside them, under ``training``, the discounted returns of the run's last
+finished training episodes, whose actions were sampled), the task's per-episode
+table (basketball: ``eval_throws.csv``), its figures, and ``learning_curve.png``
+(paper Fig. 3, and both discounted returns) when the folder has ``metrics.csv``.
 Episodes come from ``reset`` keys of ``seed``: use a seed the training did not
 use (the default, 1_000_003, is the one ``python -m gvsjax.train`` evaluates
 seed-0 runs with).
@@ -37,7 +39,7 @@ import numpy as np
 import gvsjax  # noqa: F401  (XLA flag and x64 before JAX starts)
 from gvsjax.ppo import checkpoint as ckpt
 from gvsjax.tasks import EvalResult
-from gvsjax.utils import keyvalue, plots
+from gvsjax.utils import keyvalue, plots, runlog
 from gvsjax.utils.compile_clock import compile_seconds
 
 USAGE = __doc__.strip()
@@ -70,12 +72,16 @@ def evaluate_run(checkpoint, out, n_episodes: int = 1000, seed: int = 1_000_003)
     config, env, env_params, net = ckpt.load_policy(path)
     policy = ckpt.make_policy(config, env.action_size, net)
     result: EvalResult = env.evaluate(env_params, policy, n_episodes, seed)
-    summary = {"task": env.name, "checkpoint": str(path), "seed": seed, **result.metrics}
+    summary = {"task": env.name, "checkpoint": str(path), "seed": seed,
+               "what": f"{n_episodes} held-out episodes, deterministic actions (the policy's mean)", **result.metrics}
+    training = runlog.final_training_returns(path.parent / "metrics.csv")
+    if training is not None:  # beside it, the training's own metric
+        summary["training"] = training
     (out / "eval.json").write_text(json.dumps(summary, indent=2))
     write_rows(out / env.rows_file, result.rows)
     env.figures(env_params, result, out)
     if (out / "metrics.csv").exists():
-        plots.learning_curve(out / "metrics.csv", out / "learning_curve.png")
+        plots.learning_curve(out / "metrics.csv", out / "learning_curve.png", summary)
     return summary
 
 

@@ -8,8 +8,10 @@
 Every field of the algorithm's config (``PPOConfig``, ``SACConfig``) is a ``key=value``
 override (``--help`` lists them with each task's defaults); the run options are listed in
 ``RUN_DOCS``. The run folder ``out`` receives ``config.json``, ``metrics.csv`` (one row per PPO
-update or SAC iteration; also TensorBoard events when ``tensorboardX`` or ``torch`` is
-installed), ``checkpoint.ckpt`` (``gvsjax.ppo.checkpoint``) and, at the end,
+update or SAC iteration, its ``train_*`` columns the discounted returns and failed fraction of
+the last 500 finished training episodes, ``gvsjax.utils.episode_returns``; also TensorBoard
+events when ``tensorboardX`` or ``torch`` is installed), ``checkpoint.ckpt``
+(``gvsjax.ppo.checkpoint``) and, at the end,
 the evaluation of ``gvsjax.evaluate`` (eval.json, the per-episode table and
 the task's figures). ``resume=true out=DIR`` continues the run in DIR from its
 last checkpoint (optimizer state, PRNG key and update counter included);
@@ -372,7 +374,10 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
             bar.n = min(rows[-1]["episodes"], config.total_episodes)
             finished = [r["episode_reward"] for r in rows if np.isfinite(r["episode_reward"])]
             if finished:  # long episodes: the first updates may end none
-                bar.set_postfix(reward=f"{np.mean(finished):.3f}")
+                last = rows[-1]  # the discounted returns of the last finished episodes, sampled actions
+                bar.set_postfix(reward=f"{np.mean(finished):.3f}",
+                                disc_avg=f"{last['train_discounted_return_average']:.1f}",
+                                failed=f"{last['train_failed_fraction']:.1%}")
             bar.refresh()
         if distributed.agree(time.perf_counter() - last_save >= run["checkpoint_every"]):
             ckpt.save(ckpt_path, state, config_dict, task, int(state.update))
@@ -397,7 +402,11 @@ def train(run: dict[str, Any], overrides: dict[str, Any]) -> Path:
         # process 0 alone, on its own devices: the others do not join its computations
         with sharding.unsharded() if jax.process_count() > 1 else contextlib.nullcontext():
             result = evaluate.evaluate_run(ckpt_path, out, n_episodes=run["eval_targets"], seed=seed)
-        print(env.summary(result))
+        print(f"{env.summary(result)} ({result['what']})")
+        if "training" in result:
+            t = result["training"]
+            print(f"training, {t['what']}: discounted return {t['discounted_return_average']:.4g} averaged over "
+                  f"start steps, {t['discounted_return_start']:.4g} from the first; failed {t['failed_fraction']:.1%}")
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"outputs in {out}/: {', '.join(written)}")
     figures = [n for n in written if n.endswith(".png")]

@@ -165,6 +165,15 @@ def test_cli_trains_sac_resumes_bit_identically_and_loads_its_policy(bandit, tmp
     assert action.shape == (5, 2) and bool(jnp.all(jnp.abs(action) <= 1.0))
     with pytest.raises(ValueError, match="hidden=.*cannot change on resume"):
         train.train(*train.parse_args(["task=bandit", f"out={part}", "resume=true", "hidden=8"]))
+    # the evaluation (deterministic) is written beside the training's last 500 episodes (sampled actions)
+    from gvsjax import evaluate
+
+    summary = evaluate.evaluate_run(part, part, n_episodes=16, seed=3)
+    last = _rows(part / "metrics.csv")[-1]
+    assert "deterministic" in summary["what"] and "sampled" in summary["training"]["what"]
+    assert int(float(last["train_window_episodes"])) == 500 and summary["training"]["at_episode"] == 640
+    assert summary["training"]["discounted_return_start"] == pytest.approx(float(last["train_discounted_return_start"]))
+    assert (part / "learning_curve.png").exists()
 
 
 @pytest.mark.parametrize("args, words", [

@@ -10,7 +10,9 @@ Trains ``--task`` with its defaults (PPO, or SAC with ``algo=sac``) plus the ``k
 after ``--`` (as ``python -m gvsjax.train``), with ``--relative`` appending the tip-to-target vector to the
 benchmark's observation, and evaluates it on ``--eval`` held-out episodes. Writes
 ``benchmarks/curvature_ppo_study/<task>_<name>_e<episodes>_s<seed>.json``: the command, the config, the timing,
-the evaluation and the learning curve (mean episode reward of the stochastic policy per update).
+the evaluation (the deterministic policy on held-out episodes) and the learning curve (per update: the mean
+episode reward, and the benchmark's discounted returns of the last 500 finished training episodes, whose
+actions were sampled; older runs kept instead each update's mean ``episode_benchmark_return``).
 
     python experiments/studies/curvature_ppo_study.py --table     # the results so far, as a markdown table
     python experiments/studies/curvature_ppo_study.py --figure    # figures/curvature_learning_curves.png
@@ -47,7 +49,8 @@ def relative_variant(task: str) -> str:
 
 def curve(run: Path) -> list[dict]:
     keep = ("update", "episodes", "wall_s", "episode_reward", "episode_benchmark_return", "episode_distance",
-            "entropy", "approx_kl", "episodes_completed")
+            "entropy", "approx_kl", "episodes_completed", "train_discounted_return_average",
+            "train_discounted_return_start", "train_failed_fraction", "train_window_episodes")
     with open(run / "metrics.csv") as f:
         rows = [{k: float(row[k]) for k in keep if row.get(k) not in (None, "", "nan")} for row in csv.DictReader(f)]
     offset, last = 0.0, 0.0
@@ -90,10 +93,24 @@ def smoothed(points: list[dict], at_least: int) -> list[dict]:
     return out
 
 
+def training_returns(d: dict) -> str:
+    """The benchmark's logged metric at a run's end: the discounted returns (averaged over start steps /
+    from the first step) of its last 500 finished training episodes, sampled actions; "-" for older runs."""
+    last = [c for c in d["curve"] if "train_discounted_return_average" in c]
+    if not last:
+        return "-"
+    c = last[-1]
+    return (f"{c['train_discounted_return_average']:.1f} / {c['train_discounted_return_start']:.1f}"
+            f" ({100 * c.get('train_failed_fraction', 0.0):.1f}% failed)")
+
+
 def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
-    """A markdown table of every kept run: its variant, budget, wall time and evaluation."""
-    lines = ["| task | algorithm | variant | seed | overrides | env steps | train s (load) | eval episodes "
-             "| discounted return | evaluation |", "|---|---|---|---|---|---|---|---|---|---|"]
+    """A markdown table of every kept run: its variant, budget, wall time, the training's discounted returns
+    (the published metric) and the evaluation of the deterministic policy."""
+    lines = ["| task | algorithm | variant | seed | overrides | env steps | train s (load) "
+             "| training: last 500 episodes, sampled actions: discounted return avg / start (failed) "
+             "| eval episodes | evaluation, deterministic: discounted return avg / start (failed) | evaluation |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for path in sorted(folder.glob("*.json")):
         d = json.loads(path.read_text())
         e = d["eval"]
@@ -101,7 +118,7 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
         command = d["command"].split(" -- ")
         overrides = command[1] if len(command) > 1 else ""
         physical = {k: v for k, v in e.items() if isinstance(v, (int, float)) and k not in
-                    ("seed", "n_episodes", "valid_fraction", "gamma", "settle_s")}
+                    ("seed", "n_episodes", "valid_fraction", "failed_fraction", "gamma", "settle_s")}
         physical.update({f"{k} median": v["median"] for k, v in e.items() if isinstance(v, dict) and "median" in v
                          and not k.startswith(("discounted", "return"))})
         shown = ", ".join(f"{k} {v:.3g}" for k, v in physical.items())
@@ -110,16 +127,18 @@ def table(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study") -> str:
         algo = d["config"].get("algo") or "ppo"
         lines.append(f"| {d['task']} | {algo} | {d['name']}{' (+ tip-to-target)' if d['relative_obs'] else ''} | "
                      f"{d['seed']} | {overrides} | {steps / 1e6:.2f}M | {train_seconds(d):.0f} ({load}) | "
-                     f"{e['n_episodes']} | "
-                     f"{e['discounted_return_average']['mean']:.1f} | {shown} |")
+                     f"{training_returns(d)} | {e['n_episodes']} | "
+                     f"{e['discounted_return_average']['mean']:.1f} / {e['discounted_return_start']['mean']:.1f} "
+                     f"({100 * (1.0 - e['valid_fraction']):.1f}%) | {shown} |")
     return "\n".join(lines)
 
 
 def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
            path: Path = ROOT / "figures" / "curvature_learning_curves.png") -> Path:
-    """Each task's training curves in the benchmark's metric (the stochastic policy's averaged discounted
-    return of the episodes finished in each update) against env steps and wall time, the deterministic
-    policy's evaluation at the end (a dot), and the published SAC's final value (a dashed line)."""
+    """Each task's training curves in the benchmark's metric (the discounted return averaged over start steps
+    of the last 500 finished training episodes, sampled actions; older runs: the mean of the episodes finished
+    in each update) against env steps and wall time, the deterministic policy's evaluation on held-out episodes
+    at the end (a dot), and the published SAC's final value (a dashed line, their training metric)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -136,7 +155,11 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
         env = make(task)
         for i, d in enumerate(d for d in runs if d["task"] == task):
             color = colors[i % len(colors)]
-            points = smoothed([c for c in d["curve"] if "episode_benchmark_return" in c], d["config"]["num_envs"])
+            key = "train_discounted_return_average"
+            points = [c for c in d["curve"] if key in c]
+            if not points:  # an older run: its per-update means, merged
+                key = "episode_benchmark_return"
+                points = smoothed([c for c in d["curve"] if key in c], d["config"]["num_envs"])
             label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}, {env_steps(d) / 1e6:.2g}M"
             final = d["eval"]["discounted_return_average"]["mean"]
             total = env_steps(d)
@@ -146,13 +169,14 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
                     x = np.array([x_of(c) for c in points], float)
                     if ax is row[0]:
                         x = x * env_steps(d) / d["timing"]["updates"]
-                    ax.plot(x, [c["episode_benchmark_return"] for c in points], lw=1, color=color, label=label)
+                    ax.plot(x, [c[key] for c in points], lw=1, color=color, label=label)
                     ax.plot([end], [final], "o", color=color)
                 else:
                     ax.plot([end], [final], "o", color=color, label=label + " (evaluation only)")
         for ax, xlabel in zip(row, ("environment steps", "training wall time (min)")):
-            ax.axhline(env.published_return, ls="--", color="k", lw=1, label="published SAC, 5M steps")
-            ax.set(xlabel=xlabel, ylabel="discounted return (averaged)", title=task)
+            ax.axhline(env.published_return, ls="--", color="k", lw=1, label="published SAC, 5M steps (training)")
+            ax.set(xlabel=xlabel, ylabel="discounted return (averaged)",
+                   title=f"{task}: lines training (sampled actions), dots evaluation (deterministic)")
             ax.grid(alpha=0.3)
         row[0].ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # steps as 1e6 x, labels apart
         row[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))  # outside: curves stay visible

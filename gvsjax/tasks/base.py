@@ -268,7 +268,7 @@ class Environment:
     def summary(self, metrics: Mapping[str, Any]) -> str:
         """One or a few lines describing an evaluation's metrics (``metrics["who"]``, when present,
         names what was evaluated: "MPC" for a controller; default "policy")."""
-        shown = {k: v for k, v in metrics.items() if k not in ("task", "checkpoint")}
+        shown = {k: v for k, v in metrics.items() if k not in ("task", "checkpoint", "what", "training")}
         return "eval: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in shown.items())
 
     def figures(self, params: PyTree, result: EvalResult, out: Path) -> list[Path]:

@@ -50,8 +50,10 @@ def moving_average(x: np.ndarray, w: int) -> np.ndarray:
     return (c[n] - c[lo]) / (n - lo)
 
 
-def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
-    """Mean episode reward vs episodes with a ``window_episodes`` moving average (paper Fig. 3).
+def learning_curve(metrics_csv, path, evaluation: dict | None = None, window_episodes: int = 100) -> Path:
+    """Mean episode reward vs episodes with a ``window_episodes`` moving average (paper Fig. 3); beside
+    it, when the run logged them, the discounted returns of the last finished training episodes (sampled
+    actions) and, at the end, those of ``evaluation`` (eval.json's dict: the deterministic policy).
 
     metrics.csv holds one row per PPO update or SAC iteration (the mean over the episodes
     that ended in it), so the moving average weighs each row by its episode count.
@@ -63,7 +65,9 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     count = np.maximum(np.array([float(r.get("episodes_completed", 1) or 1) for r in rows]), 1)
     ok = np.isfinite(reward)  # rows where no episode ended (long episodes) have no reward
     w = max(1, int(np.ceil(window_episodes / np.median(count[ok])))) if ok.any() else 1  # rows covering the window
-    fig, ax = plt.subplots(figsize=(7, 4))
+    discounted = bool(rows) and "train_discounted_return_average" in rows[0]
+    fig, axes = plt.subplots(1, 2 if discounted else 1, figsize=(13 if discounted else 7, 4), squeeze=False)
+    ax = axes[0, 0]
     sac = bool(rows) and "critic_loss" in rows[0]
     ax.plot(ep[ok], reward[ok], lw=0.6, alpha=0.4,
             label=f"per {'iteration' if sac else 'update'} (mean over its episodes)")
@@ -76,7 +80,28 @@ def learning_curve(metrics_csv, path, window_episodes: int = 100) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
     ax.set_title(f"{'SAC' if sac else 'PPO'} learning curve")
+    if discounted:
+        _discounted_panel(axes[0, 1], rows, ep, evaluation or {})
     return save(fig, path)
+
+
+def _discounted_panel(ax, rows: list[dict], ep: np.ndarray, evaluation: dict) -> None:
+    """Training's windowed discounted returns against episodes; the evaluation's as points at the end."""
+    for key, name, color in (("average", "averaged over start steps", "tab:blue"),
+                             ("start", "from the first step", "tab:orange")):
+        y = np.array([float(r[f"train_discounted_return_{key}"]) for r in rows])
+        ax.plot(ep, y, color=color, lw=1.5, label=f"training, {name}")
+        stats = evaluation.get(f"discounted_return_{key}")
+        if isinstance(stats, dict) and "mean" in stats:
+            ax.plot([ep[-1]], [stats["mean"]], "o", color=color, ms=7, label=f"evaluation, {name}")
+    held = int(float(rows[-1].get("train_window_episodes") or 0))
+    n = evaluation.get("n_episodes")
+    ax.set_title(f"discounted returns\ntraining: the last {held} episodes, sampled actions"
+                 + (f"; evaluation: {n} held-out episodes, deterministic" if n else ""), fontsize=9)
+    ax.set_xlabel("episodes")
+    ax.set_ylabel("discounted return")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
 
 
 def error_histogram(miss_m, path, max_cm: int = 10, title: str = "error") -> Path:

@@ -114,3 +114,23 @@ def non_finite(rows: list[dict[str, float]], state) -> str | None:
             if np.issubdtype(x.dtype, np.floating) and not np.all(np.isfinite(x)):
                 return f"{name}{jax.tree_util.keystr(where)} became non-finite by update {int(state.update) - 1}"
     return None
+
+
+def final_training_returns(metrics_csv) -> dict | None:
+    """The discounted returns of the last finished training episodes (sampled actions) at the end of a
+    run's ``metrics.csv`` (``gvsjax.utils.episode_returns``), or None when it has none."""
+    path = Path(metrics_csv)
+    if not path.exists():
+        return None
+    with open(path, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if float(r.get("train_window_episodes") or 0) > 0]
+    if not rows:
+        return None
+    last = rows[-1]
+    return {"what": f"the last {int(float(last['train_window_episodes']))} finished training episodes, "
+                    "actions sampled from the policy (the benchmark's logged metric)",
+            "at_episode": int(last["episodes"]),
+            **{k.removeprefix("train_"): float(last[k]) for k in ("train_discounted_return_average",
+                                                                  "train_discounted_return_start", "train_return",
+                                                                  "train_failed_fraction")}}
+
