@@ -50,7 +50,7 @@ def reference():
 
 @pytest.mark.parametrize("integrator, order, n", [("rk4", 4, 100), ("midpoint", 2, 400),
                                                   ("euler", 1, 800), ("imex", 1, 800),
-                                                  ("ars443", 3, 800)])
+                                                  ("ars443", 3, 800), ("ars443_frozen_mass", 1, 800)])
 def test_observed_order(integrator, order, n):
     e1 = np.linalg.norm(release_tip(integrator, n) - reference())
     e2 = np.linalg.norm(release_tip(integrator, 2 * n) - reference())
@@ -113,8 +113,9 @@ def test_ars443_layouts_are_one_scheme(robot):
     def one_step(fn):
         return jax.jit(lambda q, qd: fn(system, t, q, qd, dt))(q, qd)
 
-    a, b, c = (np.concatenate([np.stack(x) for x in one_step(fn)])
-               for fn in (integrators._ars443_folded, integrators._ars443_split, integrators._ars443_stacked))
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
-    np.testing.assert_allclose(c, b, rtol=0, atol=1e-12 * np.abs(b).max())
-    assert np.abs(b[n:] - np.stack(qd)).max() > 1e-3  # the step moved the state
+    for frozen in (False, True):  # ars443, ars443_frozen_mass
+        a, b, c = (np.concatenate([np.stack(x) for x in one_step(functools.partial(fn, frozen_mass=frozen))])
+                   for fn in (integrators._ars443_folded, integrators._ars443_split, integrators._ars443_stacked))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+        np.testing.assert_allclose(c, b, rtol=0, atol=1e-12 * np.abs(b).max())
+        assert np.abs(b[n:] - np.stack(qd)).max() > 1e-3  # the step moved the state

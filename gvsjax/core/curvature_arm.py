@@ -20,9 +20,12 @@ each with a constant curvature (and twist) per bending direction (Legendre order
 basis exactly, and the links' strains converge to the continuum rod's as the order
 grows (docs/tasks_benchmark.md, "The arm": the tip is ~1 mm off a finer split at order 0,
 where a single link with a polynomial basis is still ~1 cm off at order 8).
-``planar=True`` keeps the bending in the world x-z plane (the benchmark's 2D tasks);
-``twist=True`` adds the rest twist of each segment (the 4D IK task). The rod is
-inextensible and unshearable (Kirchhoff), as the benchmark's stiff rods nearly are.
+``planar=True`` keeps the bending in the world x-z plane (the benchmark's 2D tasks).
+In 3D the rod twists freely (a torsion coordinate per link, GJ = 2/3 EI), as the
+benchmark's rod does: under gravity a 3D shape twists it, which moves the tip by
+centimetres (docs/tasks_benchmark.md, "The arm"); ``twist=True`` adds the rest twist
+of each segment as an input (the 4D IK task). The rod is inextensible and unshearable
+(Kirchhoff), as the benchmark's stiff rods nearly are.
 """
 
 from __future__ import annotations
@@ -52,7 +55,8 @@ CURVATURE_ARM = dict(
     bending_order=0,  # per link
     n_gauss=None,  # per link; default: bending_order + 1
     planar=False,
-    twist=False,
+    torsion=None,  # free twist: None gives it to the 3D arm (as the benchmark's), never to a planar one
+    twist=False,  # the rest twist as an input (implies torsion)
 )
 """The benchmark arm of Choi & Tong: ``curvature_arm``'s default keywords (SI units)."""
 
@@ -65,7 +69,8 @@ def curvature_arm(**overrides: Any) -> Robot:
     """The benchmark's arm (``CURVATURE_ARM``, SI units): seven soft links split at ``SEGMENTS``,
     links 1-5 carrying the control segments as ``Robot.rest_strains`` (one ``RestStrainSegments``
     each, components ``("bend_z", "bend_y")`` in 3D, ``("bend_z",)`` planar, with
-    ``"torsion"`` first when ``twist``)."""
+    ``"torsion"`` first when ``twist``). In 3D each link has a torsion coordinate
+    unless ``torsion=False`` (the arm rigid in torsion)."""
     unknown = sorted(set(overrides) - set(CURVATURE_ARM))
     if unknown:
         raise ValueError(f"curvature_arm got unknown parameter(s) {unknown}; valid: {sorted(CURVATURE_ARM)}")
@@ -81,7 +86,10 @@ def curvature_arm(**overrides: Any) -> Robot:
     require(isinstance(n_gauss, int) and n_gauss >= order + 1, "n_gauss", n_gauss, f"an int >= {order + 1}")
     planar, twist = bool(p["planar"]), bool(p["twist"])
     require(not (planar and twist), "twist", twist, "False for a planar arm")
-    orders = (order if twist else -1, -1 if planar else order, order, -1, -1, -1)
+    torsion = (not planar) if p["torsion"] is None else bool(p["torsion"])
+    require(not (planar and torsion) and (torsion or not twist), "torsion", p["torsion"],
+            "None, or False for a planar arm and True with twist")
+    orders = (order if torsion else -1, -1 if planar else order, order, -1, -1, -1)
     material = Material(p["youngs_modulus"], p["density"], p["damping"], p["poisson"])
     knots = (0.0, *SEGMENTS, 1.0)
     links = tuple(SoftLink(length=p["length"] * (b - a), radius=p["radius"], material=material,

@@ -15,6 +15,10 @@ offers ``accel(t, q, qd)`` and, for IMEX, ``parts(t, q, qd) -> (M, f, K, D)``
 |          |       |           | for many strain modes, where the others collapse    |
 | ars443   | 3     | 4 + solve | IMEX RK, K and D implicit (L-stable part): no limit |
 |          |       |           | from stiffness/damping, step set by accuracy alone  |
+| ars443_  | 1 (3  | 4 + solve | ars443 with M frozen in both parts: stable where a  |
+| frozen_  | for   |           | fast strain's inertia changes with the shape (a     |
+| mass     | M(q)  |           | twisting rod), where ars443 diverges               |
+|          | fixed)|           |                                                     |
 
 ``simulate``'s default is RK4: at 2 ms it puts the fast throw's release within
 1e-9 m of a converged run, where semi-implicit Euler at 1 ms is 1.6 mm off
@@ -177,13 +181,36 @@ def _ars443(system, t, q, qd, dt):
     ``linalg.STACKED_MIN_DOFS`` DoFs the folded loop's matrices are arrays
     (``_ars443_stacked``).
     """
+    return _ars443_layout(system, t, q, qd, dt, False)
+
+
+def _ars443_frozen_mass(system, t, q, qd, dt):
+    """``_ars443`` with the explicit part's accelerations also solved with M0:
+    within a step it integrates M0 qdd = f(q, qd, t), every term but the inertia
+    evaluated at the stage.
+
+    Why: in ``_ars443`` the explicit part holds (M0^-1 - M(q_i)^-1)(K q + D qd),
+    whose sensitivity to the stage's velocity is (M0^-1 - M(q_i)^-1) D. Where a
+    strain's own inertia is tiny and the inertia it drags varies with the shape
+    (a bent rod's twist), D/M reaches ~1e5 1/s, so a change of M by 1e-4 of itself
+    over a step feeds back explicitly and diverges. With M0 in both parts the
+    stiff K and D terms are implicit only, and the split is additive in the
+    stages. Order 3 where M is constant (linear analyses give the same map as
+    ``_ars443``); where M(q) changes the step is first order in that change,
+    an error dt^2 (M(q) - M0) qdd per step, small where the motion is slow
+    against the step (docs/physics.md, integrators).
+    """
+    return _ars443_layout(system, t, q, qd, dt, True)
+
+
+def _ars443_layout(system, t, q, qd, dt, frozen_mass):
     if len(q) >= linalg.STACKED_MIN_DOFS:
-        return _ars443_stacked(system, t, q, qd, dt)
+        return _ars443_stacked(system, t, q, qd, dt, frozen_mass)
     fn = _ars443_folded if len(q) >= FOLD_MIN_DOFS else _ars443_split
-    return fn(system, t, q, qd, dt)
+    return fn(system, t, q, qd, dt, frozen_mass)
 
 
-def _ars443_folded(system, t, q, qd, dt):
+def _ars443_folded(system, t, q, qd, dt, frozen_mass: bool = False):
     """``_ars443`` with the step's start as the first of four loop iterations, which
     also keeps M0."""
     n = len(q)
@@ -211,7 +238,8 @@ def _ars443_folded(system, t, q, qd, dt):
         # at the step's start the explicit part is M0^-1 (f + K q + D qd); later f's own
         elastic = [lie.mul(jnp.where(first, 1.0, 0.0).astype(dtype), lie.add(x, y))
                    for x, y in zip(lie.matvec(K, q), lie.matvec(D, qd))]
-        e = arr(linalg.solve_spd(M, [lie.add(fi, el) for fi, el in zip(f, elastic)])) - g_v[i]
+        M_e = tuple(map(tuple, M0)) if frozen_mass else M
+        e = arr(linalg.solve_spd(M_e, [lie.add(fi, el) for fi, el in zip(f, elastic)])) - g_v[i]
         A = [[lie.add(lie.add(M0[r][c], lie.mul(a, D[r][c])), lie.mul(a * a, K[r][c])) for c in range(n)]
              for r in range(n)]
         Yq = q0 + dt * (tab_i[i] @ g_q[:4])
@@ -229,7 +257,7 @@ def _ars443_folded(system, t, q, qd, dt):
     return tuple(q1[k] for k in range(n)), tuple(qd1[k] for k in range(n))  # stiffly accurate: the last stage
 
 
-def _ars443_stacked(system, t, q, qd, dt):
+def _ars443_stacked(system, t, q, qd, dt, frozen_mass: bool = False):
     """``_ars443_folded`` with M0, K and D as (n, n) arrays and the solves stacked
     (``linalg.ldl_solve``): for many DoFs the scalar algebra's n^2 traced products
     (n^3 in the solves) cost more compile time than the arithmetic they save."""
@@ -250,7 +278,7 @@ def _ars443_stacked(system, t, q, qd, dt):
         first = i == 0
         M0 = jnp.where(first, M, M0_prev)
         elastic = jnp.where(first, mv(K, q0) + mv(D, qd0), jnp.zeros(n, dtype))
-        e = linalg.ldl_solve(M, arr(f) + elastic) - g_v[i]
+        e = linalg.ldl_solve(M0 if frozen_mass else M, arr(f) + elastic) - g_v[i]
         Yq = q0 + dt * (tab_i[i] @ g_q[:4])
         Yv = qd0 + dt * (tab_e[i] @ e_v[:4] + tab_e[i, i] * e + tab_i[i] @ g_v[:4])
         v = linalg.ldl_solve(M0 + a * D + (a * a) * K, mv(M0, Yv) - a * mv(K, Yq))
@@ -262,7 +290,7 @@ def _ars443_stacked(system, t, q, qd, dt):
     return tuple(q1[k] for k in range(n)), tuple(qd1[k] for k in range(n))
 
 
-def _ars443_split(system, t, q, qd, dt):
+def _ars443_split(system, t, q, qd, dt, frozen_mass: bool = False):
     """``_ars443`` with the step's start evaluated before the loop over stages 1-3."""
     M, f, K, D = system.parts(t, q, qd)
     n = len(q)
@@ -294,7 +322,11 @@ def _ars443_split(system, t, q, qd, dt):
         g_q, g_v, e_v, acc_prev = carry
         e_v = e_v.at[i].set(arr(_unpack(acc_prev, n)) - g_v[i])
         qi, v, Yv = solve_stage(i, g_q, g_v, e_v)
-        acc = _pack(system.accel(t + tab_c[i] * dt, tuple(qi), tuple(v)))
+        if frozen_mass:
+            _, f_i, _, _ = system.parts(t + tab_c[i] * dt, tuple(qi), tuple(v))
+            acc = _pack(linalg.solve_spd(M, f_i))
+        else:
+            acc = _pack(system.accel(t + tab_c[i] * dt, tuple(qi), tuple(v)))
         return (g_q.at[i + 1].set(v), g_v.at[i + 1].set((v - Yv) / a), e_v, acc), None
 
     (g_q, g_v, e_v, acc_last), _ = jax.lax.scan(stage, (zeros, zeros, zeros, e_v0), jnp.arange(3))
@@ -309,6 +341,7 @@ INTEGRATORS = {
     "euler": Integrator("euler", 1, 1, _semi_implicit_euler),
     "imex": Integrator("imex", 1, 1, _imex_euler),
     "ars443": Integrator("ars443", 3, 4, _ars443),
+    "ars443_frozen_mass": Integrator("ars443_frozen_mass", 1, 4, _ars443_frozen_mass),
 }
 
 

@@ -109,7 +109,7 @@ def stable_step_estimate(robot: Robot, integrator: str, q0: np.ndarray, with_con
         return math.inf
     q0 = np.asarray(q0, dtype=float)
     has_contact = with_contact and robot.contact is not None and bool(robot.contact.obstacles)
-    implicit = integrator in ("imex", "ars443")
+    implicit = integrator in ("imex", "ars443", "ars443_frozen_mass")
     if implicit and not has_contact:
         return math.inf
     sites = has_contact and bool(robot.contact.sites)

@@ -32,9 +32,7 @@ from gvsjax.tasks.curvature.control import ArmControl
 
 @struct.dataclass
 class IKParams:
-    # 4 steps per 0.1 s: the twisting arm leaves the state bounds at 2 (its torsion is fast and couples
-    # with the bending through the explicit terms)
-    arm: ArmControl = struct.field(default_factory=lambda: ArmControl(robot=curvature_arm(twist=True), n_substeps=4))
+    arm: ArmControl = struct.field(default_factory=lambda: ArmControl(robot=curvature_arm(twist=True)))
     box_low: tuple = (-0.6, -0.6, 0.3)  # m
     box_high: tuple = (0.6, 0.6, 0.9)  # m
     yaw_range: float = float(np.pi / 2)  # rad, the target's yaw is uniform in [-yaw_range, yaw_range]
