@@ -190,10 +190,11 @@ def _ars443_frozen_mass(system, t, q, qd, dt):
     evaluated at the stage.
 
     Why: in ``_ars443`` the explicit part holds (M0^-1 - M(q_i)^-1)(K q + D qd),
-    whose sensitivity to the stage's velocity is (M0^-1 - M(q_i)^-1) D. Where a
-    strain's own inertia is tiny and the inertia it drags varies with the shape
-    (a bent rod's twist), D/M reaches ~1e5 1/s, so a change of M by 1e-4 of itself
-    over a step feeds back explicitly and diverges. With M0 in both parts the
+    whose sensitivity to the stage's state is (M0^-1 - M(q_i)^-1)(K, D): the
+    stiff terms times the change of M over the step. The benchmark arm's short
+    links have M^-1 D up to 1e7 1/s; where the inertia such a strain drags changes
+    with the shape (a bent rod's twist) that product diverges at 0.05 s steps
+    (without gravity or Coriolis terms too; frozen M, not). With M0 in both parts the
     stiff K and D terms are implicit only, and the split is additive in the
     stages. Order 3 where M is constant (linear analyses give the same map as
     ``_ars443``); where M(q) changes the step is first order in that change,
