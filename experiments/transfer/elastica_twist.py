@@ -173,7 +173,7 @@ def run(episodes: int, seconds: float) -> dict:
     cm = lambda x: (100 * x).tolist()  # noqa: E731
     out = {"episodes": episodes, "seconds": seconds, "hold_s": HOLD_S, "refined": list(REFINED),
            "command": f"python experiments/transfer/elastica_twist.py --episodes {episodes} --seconds {seconds:g}",
-           "twin": "elastica_twins.Rod: 20 elements, dt 2e-4 s (refined: dt x 20 / n), PyElastica "
+           "twin": "elastica_twist.Rod: 20 elements, dt 2e-4 s (refined: dt x 20 / n), PyElastica "
                    f"{importlib.metadata.version('pyelastica')}",
            "dynamic_gap_cm": {}, "settled_gap_cm": {}}
     for name, t in tips.items():
@@ -214,8 +214,8 @@ def figure(d: dict) -> None:
     axes[0].set(title=f"during the walks: against the 20-element twin\n({d['episodes']} walks of {d['seconds']:g} s, "
                       "every 0.1 s)", xlabel="tip distance (cm)", ylabel="fraction")
     axes[1].set(title="settled: against the twin refined to 60 elements", xlabel="tip distance (cm)")
-    axes[0].axvline(1.5, color="grey", lw=0.8, ls="--")
-    axes[1].axvline(0.6, color="grey", lw=0.8, ls="--")
+    axes[0].axvline(1.5, color="grey", lw=0.8, ls="--", label="target: median below")
+    axes[1].axvline(0.6, color="grey", lw=0.8, ls="--", label="target: median below")
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
