@@ -11,7 +11,8 @@ Sources: ``benchmarks/eval_<task>.json`` (each task's recorded evaluations: runs
 command, the metrics), ``benchmarks/time_to_quality*.json`` (basketball's five seeds) and the studies'
 JSON (``track3d_basis``, ``*_substeps``, ``reach_obstacles_steps``, ``throw3d_convergence``,
 ``muscle_workspace``, ``tendon_reachability``, ``curvature_arm_basis``, ``env_throughput``, ``sim``,
-``benchmark_task_runs``, ``elastica_twins``, ``benchmark_tasks_speed``).
+``benchmark_task_runs``, ``elastica_twins``, ``elastica_twist``, ``twist_speed``,
+``benchmark_tasks_speed``).
 
 Run it alone to print every table: ``python docs/gen_results.py [NAME ...]``.
 """
@@ -509,6 +510,50 @@ def elastica_twins(root: Path) -> str:
             + f"\n\n```bash\n{cmds}" + (f"\n{shape['command']}" if shape else "") + "\n```")
 
 
+def elastica_twist(root: Path) -> str:
+    """The 3D benchmark arm against its PyElastica twin under random walks (``benchmarks/elastica_twist.json``)."""
+    d = load(root, "elastica_twist.json")
+
+    def cells(x: list) -> list[str]:
+        return [f"{_percentile(x, 50):.2f}", f"{_percentile(x, 95):.2f}", f"{max(x):.2f}"]
+
+    dyn, st = d["dynamic_gap_cm"], d["settled_gap_cm"]
+    arms = {"torsion": "gvsjax, twisting (default)", "rigid_torsion": "gvsjax, rigid in torsion (before)"}
+    rows = [[label, "during the walks", "PyElastica, 20 elements", *cells(dyn[k])] for k, label in arms.items()]
+    for n in d["refined"]:
+        rows += [[label, "settled", f"PyElastica, {n} elements", *cells(st[f"{k}_vs_{n}"])]
+                 for k, label in arms.items()]
+    rows += [["PyElastica, 20 elements", "settled", f"PyElastica, {n} elements", *cells(st[f"twin20_vs_{n}"])]
+             for n in d["refined"]]
+    rows.append(["PyElastica, 40 elements", "settled", "PyElastica, 60 elements", *cells(st["twin40_vs_60"])])
+    return (table(["arm", "when", "against", "tip distance (cm): median", "p95", "max"], rows)
+            + f"\n\n{d['episodes']} smooth random walks of {d['seconds']:g} s (10 bending actions), then "
+            f"{d['hold_s']:g} s without action (settled). Twin: {d['twin']}. Data: `benchmarks/elastica_twist.json`."
+            f"\n\n```bash\n{d['command']}\n```")
+
+
+def twist_speed(root: Path) -> str:
+    """Env steps/s of the 3D tasks before and after their arm twisted (``benchmarks/twist_speed.json``)."""
+    d = load(root, "twist_speed.json")
+    r = d["env_steps_per_s"]
+    rows = [[task, num(r[f"{task} before"], 0), num(r[f"{task} after"], 0),
+             f"{r[f'{task} after'] / r[f'{task} before']:.2f}"] for task in ("follow_target", "ik_4d")]
+    load_avg = d["load_average_1min"]
+    return (table(["task", "before: env steps/s", "after", "after / before"], rows)
+            + f"\n\nBatch {d['batch']}, {d['dtype']}, median of {d['repeats']} calls of {d['steps_per_call']} steps, "
+            f"the four cases interleaved (load average {min(load_avg):.1f}-{max(load_avg):.1f}). Before: "
+            "`follow_target` rigid in torsion with `ars443`, `ik_4d` with `ars443` at 4 steps per 0.1 s; after: "
+            "the defaults. Data: `benchmarks/twist_speed.json`.\n\n"
+            f"```bash\n{d['command']}\n```")
+
+
+def _percentile(x: list, q: float) -> float:
+    s = sorted(x)
+    k = (len(s) - 1) * q / 100
+    lo = math.floor(k)
+    return s[lo] + (s[min(lo + 1, len(s) - 1)] - s[lo]) * (k - lo)
+
+
 def benchmark_tasks_speed(root: Path) -> str:
     """Env steps/s of the benchmark tasks, gvsjax against the PyElastica twins
     (``benchmarks/benchmark_tasks_speed.json``)."""
@@ -677,6 +722,8 @@ STUDIES = {
     "mpc_derivative": mpc_derivative,
     "mpc_bc": mpc_bc,
     "elastica_twins": elastica_twins,
+    "elastica_twist": elastica_twist,
+    "twist_speed": twist_speed,
     "benchmark_tasks_speed": benchmark_tasks_speed,
     "time_to_quality": time_to_quality,
     "tendon_arm": tendon_arm,
