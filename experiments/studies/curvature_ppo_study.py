@@ -148,19 +148,21 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
     from gvsjax.utils import plots
 
     runs = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))]
-    tasks = sorted({d["task"] for d in runs})
+    row_of = lambda task: task.removesuffix("_frame")  # noqa: E731  (ik_4d_frame beside ik_4d)
+    tasks = sorted({row_of(d["task"]) for d in runs})
     fig, axes = plt.subplots(len(tasks), 2, figsize=(13, 3.2 * len(tasks)), squeeze=False)
     colors = plt.get_cmap("tab20").colors  # a task can hold more runs than the default cycle's 10 colours
     for row, task in zip(axes, tasks):
         env = make(task)
-        for i, d in enumerate(d for d in runs if d["task"] == task):
+        for i, d in enumerate(d for d in runs if row_of(d["task"]) == task):
             color = colors[i % len(colors)]
             key = "train_discounted_return_average"
             points = [c for c in d["curve"] if key in c]
             if not points:  # an older run: its per-update means, merged
                 key = "episode_benchmark_return"
                 points = smoothed([c for c in d["curve"] if key in c], d["config"]["num_envs"])
-            label = f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}, {env_steps(d) / 1e6:.2g}M"
+            label = (f"{d['config'].get('algo') or 'ppo'} {d['name']} s{d['seed']}, {env_steps(d) / 1e6:.2g}M"
+                     + (f" ({d['task']})" if d["task"] != task else ""))
             final = d["eval"]["discounted_return_average"]["mean"]
             total = env_steps(d)
             for ax, x_of, end in ((row[0], lambda c: c["update"], total),
@@ -175,12 +177,13 @@ def figure(folder: Path = ROOT / "benchmarks" / "curvature_ppo_study",
                     ax.plot([end], [final], "o", color=color, label=label + " (evaluation only)")
         for ax, xlabel in zip(row, ("environment steps", "training wall time (min)")):
             ax.axhline(env.published_return, ls="--", color="k", lw=1, label="published SAC, 5M steps (training)")
-            ax.set(xlabel=xlabel, ylabel="discounted return (averaged)",
-                   title=f"{task}: lines training (sampled actions), dots evaluation (deterministic)")
+            ax.set(xlabel=xlabel, ylabel="discounted return (averaged)", title=task)
             ax.grid(alpha=0.3)
         row[0].ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # steps as 1e6 x, labels apart
         row[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))  # outside: curves stay visible
-    fig.tight_layout()
+    fig.suptitle("lines: training, the last 500 episodes with sampled actions (older runs: each update's "
+                 "episodes); dots: evaluation, held-out episodes, deterministic", fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.98))
     return plots.save(fig, path)
 
 
