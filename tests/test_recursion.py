@@ -170,3 +170,49 @@ def test_a_spatial_cantilever_under_a_tip_couple_is_a_closed_form_arc(recursion)
     theta = k * L
     expected = np.array([np.sin(theta), 0.0, 0.0]) / k + (1 - np.cos(theta)) / k * np.cross(axis, [1.0, 0.0, 0.0])
     np.testing.assert_allclose(tip, expected, atol=1e-3 * L)
+
+
+def three_rods() -> gv.Robot:
+    """A revolute hub and three scanned soft links end to end (other lengths, radii, a taper, a rest strain on the
+    middle one, gravity, a tip load): one run of ``scan.chain_groups``."""
+    basis = gv.StrainBasis(orders=(0, 1, 0, -1, -1, -1), kind="legendre")  # 4 DoFs each, 13 with the hub
+    mat = gv.Material(3e6, 1000.0, 2e4, 0.5)
+    rest = np.zeros(6)
+    rest[:4] = (0.3, 0.0, -0.8, 1.0)
+    links = (gv.SoftLink(length=0.3, radius=0.03, material=mat, basis=basis, n_gauss=2, recursion="scan",
+                         joint=gv.Joint("revolute", axis=(0.0, 0.0, 1.0))),
+             gv.SoftLink(length=0.2, radius=0.025, taper=0.8, material=mat, basis=basis, n_gauss=2,
+                         rest_strain=rest, recursion="scan", joint=gv.Joint("fixed")),
+             gv.SoftLink(length=0.4, radius=0.02, material=mat, basis=basis, n_gauss=3, recursion="scan",
+                         joint=gv.Joint("fixed")))
+    return gv.Robot(links=links, gravity=9.81, loads=(gv.PointLoad(magnitude=2.0, link=2, X=1.0,
+                                                                  direction=(0.0, 0.6, 0.8)),))
+
+
+def test_a_chain_of_links_is_one_scan_with_the_same_outputs_and_gradients(monkeypatch):
+    robot = three_rods()
+    assert scan.chain_groups(robot) == [[0, 1, 2]]
+    n = robot.n_dofs
+    q, qd = _state(robot, 2)
+    z = [0.0] * n
+    jaxpr = jax.make_jaxpr(lambda q: dynamics.mass_and_forces(robot, [q[i] for i in range(n)], z))(q)
+    assert sum(e.primitive.name == "scan" for e in jaxpr.jaxpr.eqns) == 1  # one Magnus step traced, not three
+
+    def scalar(q):  # a smooth function of every output of the dynamics
+        out = _outputs(robot, q, qd)
+        return jnp.sum(jnp.sin(out["M"])) + 1e-3 * jnp.sum(out["F"] ** 2) + jnp.sum(out["p"])
+
+    grouped = jax.jit(lambda q: _outputs(robot, q, qd))(q)
+    value, grad = jax.jit(jax.value_and_grad(scalar))(q)
+    monkeypatch.setattr(scan, "chain_groups", lambda r: [[i] for i in range(len(r.links))])
+    alone = jax.jit(lambda q: _outputs(robot, q, qd))(q)
+    for key in grouped:
+        scale = max(1.0, float(jnp.abs(alone[key]).max()))
+        np.testing.assert_allclose(grouped[key], alone[key], rtol=0, atol=1e-13 * scale, err_msg=key)
+    assert float(jnp.abs(alone["F"]).max()) > 1.0  # the comparison is not between zeros
+    # the gradient through the run's scan (rematerialised) against central differences
+    f = jax.jit(scalar)
+    h = 1e-6
+    fd = np.array([(f(q.at[i].add(h)) - f(q.at[i].add(-h))) / (2 * h) for i in range(n)])
+    np.testing.assert_allclose(np.asarray(grad), fd, rtol=1e-6, atol=1e-6 * float(np.abs(fd).max()))
+    assert float(value) == float(f(q))

@@ -189,14 +189,16 @@ def _add_stacked_body(M, F, pt: Point, inertia_diag: tuple, gravity_world: tuple
     live = [r for r in range(6) if not lie.is_zero(Ms[r])]
     Fv = sum(jnp.einsum("i,ij->j", arr(w[r]), pt.J[r]) for r in range(6) if not lie.is_zero(w[r]))
     Mm = sum(jnp.einsum("i,ij,ik->jk", arr(Ms[r]), pt.J[r], pt.J[r]) for r in live)
-    for j, a in enumerate(pt.cols):
-        if a < 0:
-            continue
-        if not isinstance(Fv, int):
-            F[j] = add(F[j], Fv[a])
-        for k, b in enumerate(pt.cols[: j + 1]):
-            if b >= 0 and not isinstance(Mm, int):
-                M[j][k] = add(M[j][k], Mm[a, b])
+    pairs = [(j, k) for j, a in enumerate(pt.cols) if a >= 0 for k, b in enumerate(pt.cols[: j + 1]) if b >= 0]
+    if not isinstance(Fv, int):
+        for j, f in zip([j for j, a in enumerate(pt.cols) if a >= 0],
+                        linalg.entries(Fv, tuple(a for a in pt.cols if a >= 0))):
+            F[j] = add(F[j], f)
+    if not isinstance(Mm, int):
+        m = Mm.shape[1]
+        flat = tuple(pt.cols[j] * m + pt.cols[k] for j, k in pairs)
+        for (j, k), e in zip(pairs, linalg.entries(Mm.reshape(-1), flat)):
+            M[j][k] = add(M[j][k], e)
 
 
 def _add_wrench(F, pt: Point, wrench: Sequence, local: bool, weight=1.0) -> None:

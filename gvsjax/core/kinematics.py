@@ -53,7 +53,10 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True,
     base = (R, p, [zeros(6)] * n, zeros(6), zeros(6))
     ends: list = []  # the state at each link's far end, where its children start
     points: list[Point] = []
+    runs = {g[0]: g for g in scan.chain_groups(robot) if len(g) > 1}
     for li, (link, (j0, s0, end)) in enumerate(zip(robot.links, robot.dof_slices())):
+        if len(ends) > li:  # visited by its run's scan
+            continue
         parent = robot.parent(li)
         state = base if parent < 0 else ends[parent]
         if link.joint.mounted:
@@ -67,6 +70,9 @@ def forward(robot: Robot, q: Sequence, qd: Sequence, with_psi: bool = True,
             # one-DoF motion: T(O) Phi_j = Phi_j, so S = Phi_j and Sdot = 0
             state = advance(state, R_s, p_s, [phi_j] if jacobian else [], [j0 + k] if jacobian else [], Od, zeros(6),
                             with_psi)
+        if li in runs:  # the links after the first have joints with no DoFs and no offset
+            ends += scan.soft_chain(robot, runs[li], q, qd, state, points, with_psi, jacobian)
+            continue
         if isinstance(link, SoftLink):
             state = _soft_link(robot, li, link, q[s0:end], qd[s0:end], s0, state, points, with_psi, jacobian)
         else:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator, Sequence
 
+import jax
 import jax.numpy as jnp
 
 from gvsjax.core.lie import Scalar, as_array, is_zero, mul, sub
@@ -76,22 +77,68 @@ def ldl_solve(A: jnp.ndarray, b: jnp.ndarray) -> jnp.ndarray:
     n = A.shape[-1]
     if A.shape != (n, n) or b.shape != (n,):
         raise ValueError(f"ldl_solve: A must be (n, n) and b (n,), got {A.shape} and {b.shape}")
-    S, z = A, b  # the trailing block; only its first column and corner are ever read
-    cols, d, y = [], [], []
+    return _ldl_solve(A, b)
+
+
+def _factor(A: jnp.ndarray) -> tuple[list, list]:
+    """L's columns below the diagonal and D of A = L D L^T, from A's lower triangle."""
+    n = A.shape[-1]
+    S = A  # the trailing block; only its first column and corner are ever read
+    cols, d = [], []
     for j in range(n):
         dj = S[0, 0]
         d.append(dj)
-        y.append(z[0])
         if j + 1 < n:
             col = S[1:, 0] / dj
             S = S[1:, 1:] - (dj * col)[:, None] * col[None, :]
-            z = z[1:] - col * z[0]
             cols.append(col)
+    return cols, d
+
+
+def _substitute(cols: list, d: list, b: jnp.ndarray) -> jnp.ndarray:
+    """x with L D L^T x = b."""
+    n = len(d)
+    z, y = b, []
+    for j in range(n):
+        y.append(z[0])
+        if j + 1 < n:
+            z = z[1:] - cols[j] * z[0]
     x = (y[n - 1] / d[n - 1])[None]
     for i in reversed(range(n - 1)):
         xi = y[i] / d[i] - jnp.sum(cols[i] * x)
         x = jnp.concatenate([xi[None], x])
     return x
+
+
+# The solve's tangent from the factors, dx = A^-1 (db - dA x): differentiated through the
+# factorisation instead, a reverse pass traces one full-size pad per slice of the shrinking block,
+# which dominates the compile and the run time of a gradient through the dynamics.
+@jax.custom_jvp
+def _ldl_solve(A, b):
+    cols, d = _factor(A)
+    return _substitute(cols, d, b)
+
+
+@_ldl_solve.defjvp
+def _ldl_jvp(primals, tangents):
+    A, b = primals
+    dA, db = tangents
+    cols, d = _factor(A)
+    x = _substitute(cols, d, b)
+    dS = jnp.tril(dA) + jnp.tril(dA, -1).T  # the symmetric matrix the lower triangle stands for
+    return x, _substitute(cols, d, db - jnp.sum(dS * x[None, :], axis=-1))
+
+
+def entries(x: jnp.ndarray, index: Sequence[int]) -> tuple:
+    """The entries x[i] of a 1-D array for i in ``index``, as a tuple of scalars (the scalar
+    algebra's layout).
+
+    Taken by one split rather than by indexing each: a split transposes into one concatenation,
+    where n indexings transpose into n full-size pads and their sum, which in a reverse pass over
+    the dynamics cost more than the rest of it.
+    """
+    pieces = jnp.split(x, x.shape[0])
+    return tuple(pieces[i].reshape(()) for i in index)
 
 
 def symmetric(A: Sequence[Sequence[Scalar]], dtype) -> jnp.ndarray:

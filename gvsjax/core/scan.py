@@ -114,7 +114,9 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
         last, ys = jax.lax.scan(body, first, leaves)
     else:
         def looped(carry, x):
-            out = pack(*compose(unpack(carry), _interval_step(link, x, active, scale, qv, qdv, with_psi, jacobian)))
+            step = _interval_step(x, active, scale, link.length, link.rest_strain is not None, qv, qdv, with_psi,
+                                  jacobian)
+            out = pack(*compose(unpack(carry), step))
             return out, out
 
         last, ys = jax.lax.scan(looped, first, _interval_data(link, grid, dtype))
@@ -129,6 +131,120 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     return R, p, J_list, eta, psi
 
 
+def chain_groups(robot) -> list[list[int]]:
+    """The robot's links in runs that one ``lax.scan`` visits (``soft_chain``); a run of one is a
+    link on its own. A link continues its parent's run when both are scanned soft links of a robot
+    with more than ``HOIST_MAX_DOFS`` DoFs, it sits on its parent's end by a joint with no DoFs and
+    no offset, it is the parent's only child, and both have the same number of strain coordinates.
+    A chain of n such links then traces one Magnus step, not n."""
+    n = robot.n_dofs
+    children = [sum(robot.parent(j) == i for j in range(len(robot.links))) for i in range(len(robot.links))]
+
+    def scanned(li):
+        link = robot.links[li]
+        return isinstance(link, SoftLink) and uses_scan(link, n)
+
+    groups: list[list[int]] = []
+    for li, link in enumerate(robot.links):
+        prev = robot.parent(li)
+        joins = (n > HOIST_MAX_DOFS and groups and groups[-1][-1] == prev and scanned(li) and scanned(prev)
+                 and link.joint.n_dofs == 0 and not link.joint.mounted and children[prev] == 1
+                 and link.basis.n_dofs == robot.links[prev].basis.n_dofs)
+        if joins:
+            groups[-1].append(li)
+        else:
+            groups.append([li])
+    return groups
+
+
+def soft_chain(robot, lis, q, qd, state, points, with_psi, jacobian=True) -> list:
+    """``soft_link`` over a run of links (``chain_groups``) in one ``lax.scan``: their intervals
+    follow each other, each with its link's basis embedded in the run's columns, so one Magnus
+    step is traced for the whole run. Records one stacked ``Point`` per link, as ``soft_link``
+    does, and returns the state at each link's far end (None but for the last: only the run's
+    next link starts from an inner link's end)."""
+    slices = robot.dof_slices()
+    links = [robot.links[li] for li in lis]
+    grids = [grid_of(robot, li) for li in lis]
+    s0, end = slices[lis[0]][1], slices[lis[-1]][2]
+    offsets = [slices[li][1] - s0 for li in lis]
+    qs, qds = q[s0:end], qd[s0:end]
+    n_g = end - s0
+    dtype = jnp.result_type(*(lie.as_array(x) for x in (*qs, *(link.length for link in links))))
+    R0, p0, J0, eta0, psi0 = state
+    n = len(J0)
+    cols = [k for k in range(s0) if any(not lie.is_zero(a) for a in J0[k])] + list(range(s0, end))
+    if not jacobian:
+        cols = []
+    n_prev = len(cols) - n_g
+    arr = lambda a: jnp.asarray(lie.as_array(a), dtype)  # noqa: E731
+    vec = lambda xs: 0 if all(lie.is_zero(x) for x in xs) else jnp.stack([arr(x) for x in xs])  # noqa: E731
+    qv, qdv = vec(qs), vec(qds)
+    active = [any(bool(np.any(g.phi1[:, r]) or np.any(g.phi2[:, r])) for g in grids) for r in range(6)]
+    with_rest = any(link.rest_strain is not None for link in links)
+
+    def embed(phi, k):  # (n_int, 6, n_s) -> (n_int, 6, n_g), scaled: SoRoSim's 1/L on the angular rows
+        scale = jnp.stack([arr(1.0 / links[k].length)] * 3 + [arr(1.0)] * 3)
+        out = jnp.zeros(phi.shape[:2] + (n_g,), dtype)
+        return out.at[:, :, offsets[k]:offsets[k] + phi.shape[2]].set(jnp.asarray(phi, dtype) * scale[:, None])
+
+    data: dict[str, Any] = dict(
+        h=jnp.concatenate([jnp.asarray(g.dX, dtype) * arr(link.length) for g, link in zip(grids, links)]),
+        phi1=jnp.concatenate([embed(g.phi1, k) for k, g in enumerate(grids)]),
+        phi2=jnp.concatenate([embed(g.phi2, k) for k, g in enumerate(grids)]))
+    if with_rest:
+        for i, key in enumerate(("rest1", "rest2")):
+            data[key] = jnp.concatenate([
+                jnp.stack([jnp.broadcast_to(arr(c), x.shape) for c in rest_strain(link, x)], axis=1)
+                for link, g in zip(links, grids) for x in (zanna_points(g)[i],)])
+
+    def compose(state, step):
+        R, p, J, eta, psi = state
+        R_s, p_s, S, S_qd, Sdot_qd = step
+        if jacobian:
+            J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
+            J = lie.ad_inv_apply(R_s, p_s, J)
+        if with_psi:
+            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
+        eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
+        R, p = lie.compose(R, p, R_s, p_s)
+        return R, p, J, eta, psi
+
+    def pack(R, p, J, eta, psi) -> tuple:
+        scalars = [*(a for row in R for a in row), *p, *eta, *(psi if with_psi else ())]
+        return tuple(arr(a) for a in scalars), tuple(jnp.broadcast_to(arr(c), (len(cols),)) for c in J)
+
+    def unpack(carry) -> tuple:
+        f, J = carry
+        R = (tuple(f[0:3]), tuple(f[3:6]), tuple(f[6:9]))
+        return R, tuple(f[9:12]), tuple(J), tuple(f[12:18]), tuple(f[18:24]) if with_psi else psi0
+
+    def looped(carry, x):
+        step = _interval_step(x, active, [1.0] * 6, 1.0, with_rest, qv, qdv, with_psi, jacobian)
+        out = pack(*compose(unpack(carry), step))
+        return out, out
+
+    first = pack(R0, p0, [tuple(J0[k][r] for k in cols) for r in range(6)], eta0, psi0)
+    # rematerialised under reverse-mode AD: the transposed loop recomputes a step from its carry
+    # rather than reading hundreds of per-step residuals, each its own in-place write in the loop
+    last, ys = jax.lax.scan(jax.checkpoint(looped), first, data)
+    stacked = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), first, ys)
+    start = 0
+    for k, (li, link, g) in enumerate(zip(lis, links, grids)):
+        rows = slice(start, start + len(g.X))
+        start += len(g.dX)
+        mine = cols[:n_prev + offsets[k] + link.basis.n_dofs] if jacobian else []
+        f, J = stacked
+        R, p, Jk, eta, psi = unpack((tuple(a[rows] for a in f), tuple(Jr[rows, :len(mine)] for Jr in J)))
+        points.append(Point(li, g.X, "soft", mul(jnp.asarray(g.w, dtype), link.length), R, p, Jk, eta, psi,
+                            rows=len(g.X), cols=tuple(mine.index(c) if c in mine else -1 for c in range(n))))
+    R, p, J, eta, psi = unpack(last)
+    J_list = [zeros(6)] * n
+    for j, c in enumerate(cols):
+        J_list[c] = tuple(Jr[j] for Jr in J)
+    return [None] * (len(lis) - 1) + [(R, p, J_list, eta, psi)]
+
+
 def _interval_data(link, grid, dtype) -> dict[str, Any]:
     """The scan's per-interval inputs: lengths h (n_int,), the raw basis at the two Zanna points
     phi1, phi2 (n_int, 6, n_s) and, with a rest strain, its values there rest1, rest2 (n_int, 6)."""
@@ -140,19 +256,20 @@ def _interval_data(link, grid, dtype) -> dict[str, Any]:
     return xs
 
 
-def _interval_step(link, x, active, scale, qv, qdv, with_psi, jacobian) -> tuple:
-    """One interval's Magnus step inside the loop, from its slice ``x`` of ``_interval_data``:
-    (R_s, p_s, S (6 entries of shape (n_s,)), S_qd, Sdot_qd)."""
+def _interval_step(x, active, scale, length, with_rest, qv, qdv, with_psi, jacobian) -> tuple:
+    """One interval's Magnus step inside the loop, from its slice ``x`` of ``_interval_data``
+    (intervals of ``length`` times x["h"]; the basis scaled by ``scale`` per row; x["rest1"] and
+    x["rest2"] read when ``with_rest``): (R_s, p_s, S (6 entries of shape (n_s,)), S_qd, Sdot_qd)."""
     def combine(P, v):  # sum_k P[:, k] v_k for a stacked basis P (6 entries of shape (n_s,))
         return tuple(0 if lie.is_zero(Pr) or lie.is_zero(v) else Pr @ v for Pr in P)
 
     P1, P2 = (tuple(mul(x[k][r], scale[r]) if active[r] else 0 for r in range(6)) for k in ("phi1", "phi2"))
-    rest1, rest2 = (XI_STAR, XI_STAR) if link.rest_strain is None else (
+    rest1, rest2 = (XI_STAR, XI_STAR) if not with_rest else (
         tuple(x["rest1"][r] for r in range(6)), tuple(x["rest2"][r] for r in range(6)))
     xi1, xi2 = vadd(rest1, combine(P1, qv)), vadd(rest2, combine(P2, qv))
     R_s, p_s, S_cols, S_qd, Sdot_qd = magnus(xi1, xi2, combine(P1, qdv), combine(P2, qdv),
                                              [P1] if jacobian else [], [P2] if jacobian else [],
-                                             mul(x["h"], link.length), with_psi)
+                                             mul(x["h"], length), with_psi)
     return R_s, p_s, S_cols[0] if jacobian else (), S_qd, Sdot_qd
 
 
