@@ -1,9 +1,9 @@
 """Substeps and precision of the benchmark arm's control step: tip error against a fine run, and speed.
 
-Episodes of ``follow_target``'s arm (``gv.curvature_arm``) under random actions held 0.1 s each,
-through the task's own control step (``tasks.curvature.control``), for 20 control steps (2 s),
-with n ars443 steps per control step in float64 and float32. The reference is 32 steps in
-float64. Reports the tip's distance to the reference at every control step (median, 95th
+Episodes of ``follow_target``'s arm (``gv.curvature_arm``, twisting) under random actions held 0.1 s
+each, through the task's own control step (``tasks.curvature.control``, its integrator), for 20
+control steps (2 s), with n steps per control step in float64 and float32. The reference is 32
+steps in float64. Reports the tip's distance to the reference at every control step (median, 95th
 percentile, max over episodes and steps) and the environment steps per second of one batched
 control step (median of repeats, compile excluded).
 
@@ -76,7 +76,8 @@ def main(batch: int = 256, episodes: int = 64) -> dict:
             print(f"{dtype} {n:2d} substeps: tip error median {r['tip_error_mm_median']:.3f} mm, p95 "
                   f"{r['tip_error_mm_p95']:.3f}, max {r['tip_error_mm_max']:.3f}; "
                   f"{r['env_steps_per_s']:.0f} env steps/s", flush=True)
-    out = {"reference": "32 ars443 steps per 0.1 s, float64", "episodes": episodes, "control_steps": STEPS,
+    out = {"reference": f"32 {base.integrator} steps per 0.1 s, float64", "integrator": base.integrator,
+           "dofs": base.robot.n_dofs, "episodes": episodes, "control_steps": STEPS,
            "batch": batch, "rows": rows}
     OUT.write_text(json.dumps(out, indent=2) + "\n")
     return out
