@@ -82,26 +82,7 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     qv, qdv = vec(qs), vec(qds)
     active = [bool(np.any(grid.phi1[:, r]) or np.any(grid.phi2[:, r])) for r in range(6)]
 
-    def compose(state, step):  # the state (R, p, J, eta, psi) carried over one interval's step
-        R, p, J, eta, psi = state
-        R_s, p_s, S, S_qd, Sdot_qd = step
-        if jacobian:
-            J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
-            J = lie.ad_inv_apply(R_s, p_s, J)
-        if with_psi:
-            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
-        eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
-        R, p = lie.compose(R, p, R_s, p_s)
-        return R, p, J, eta, psi
-
-    def pack(R, p, J, eta, psi) -> tuple:
-        scalars = [*(a for row in R for a in row), *p, *eta, *(psi if with_psi else ())]
-        return tuple(arr(a) for a in scalars), tuple(jnp.broadcast_to(arr(c), (len(cols),)) for c in J)
-
-    def unpack(carry) -> tuple:
-        f, J = carry
-        R = (tuple(f[0:3]), tuple(f[3:6]), tuple(f[6:9]))
-        return R, tuple(f[9:12]), tuple(J), tuple(f[12:18]), tuple(f[18:24]) if with_psi else psi0
+    compose, pack, unpack = _carry(n_prev, len(cols), jacobian, with_psi, arr, psi0)
 
     first = pack(R0, p0, [tuple(J0[k][r] for k in cols) for r in range(6)], eta0, psi0)
     if n <= HOIST_MAX_DOFS:
@@ -129,6 +110,34 @@ def soft_link(robot, li, link, qs, qds, s0, state, points, with_psi, jacobian=Tr
     for j, k in enumerate(cols):
         J_list[k] = tuple(Jr[j] for Jr in J)
     return R, p, J_list, eta, psi
+
+
+def _carry(n_prev: int, m: int, jacobian: bool, with_psi: bool, arr, psi0) -> tuple:
+    """(compose, pack, unpack) of the state (R, p, J, eta, psi) a scan carries along a link: one
+    interval's step composed onto it, and the state to and from the loop's carry (24 scalars and J's
+    six rows over its m columns, the first ``n_prev`` of them the links' before)."""
+    def compose(state, step):
+        R, p, J, eta, psi = state
+        R_s, p_s, S, S_qd, Sdot_qd = step
+        if jacobian:
+            J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
+            J = lie.ad_inv_apply(R_s, p_s, J)
+        if with_psi:
+            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
+        eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
+        R, p = lie.compose(R, p, R_s, p_s)
+        return R, p, J, eta, psi
+
+    def pack(R, p, J, eta, psi) -> tuple:
+        scalars = [*(a for row in R for a in row), *p, *eta, *(psi if with_psi else ())]
+        return tuple(arr(a) for a in scalars), tuple(jnp.broadcast_to(arr(c), (m,)) for c in J)
+
+    def unpack(carry) -> tuple:
+        f, J = carry
+        R = (tuple(f[0:3]), tuple(f[3:6]), tuple(f[6:9]))
+        return R, tuple(f[9:12]), tuple(J), tuple(f[12:18]), tuple(f[18:24]) if with_psi else psi0
+
+    return compose, pack, unpack
 
 
 def chain_groups(robot) -> list[list[int]]:
@@ -198,26 +207,7 @@ def soft_chain(robot, lis, q, qd, state, points, with_psi, jacobian=True) -> lis
                 jnp.stack([jnp.broadcast_to(arr(c), x.shape) for c in rest_strain(link, x)], axis=1)
                 for link, g in zip(links, grids) for x in (zanna_points(g)[i],)])
 
-    def compose(state, step):
-        R, p, J, eta, psi = state
-        R_s, p_s, S, S_qd, Sdot_qd = step
-        if jacobian:
-            J = tuple(jnp.concatenate([Jr[:n_prev], Jr[n_prev:] + lie.as_array(Sr)]) for Jr, Sr in zip(J, S))
-            J = lie.ad_inv_apply(R_s, p_s, J)
-        if with_psi:
-            psi = lie.ad_inv_apply(R_s, p_s, vadd(vadd(psi, Sdot_qd), lie.ad(eta, S_qd)))
-        eta = lie.ad_inv_apply(R_s, p_s, vadd(eta, S_qd))
-        R, p = lie.compose(R, p, R_s, p_s)
-        return R, p, J, eta, psi
-
-    def pack(R, p, J, eta, psi) -> tuple:
-        scalars = [*(a for row in R for a in row), *p, *eta, *(psi if with_psi else ())]
-        return tuple(arr(a) for a in scalars), tuple(jnp.broadcast_to(arr(c), (len(cols),)) for c in J)
-
-    def unpack(carry) -> tuple:
-        f, J = carry
-        R = (tuple(f[0:3]), tuple(f[3:6]), tuple(f[6:9]))
-        return R, tuple(f[9:12]), tuple(J), tuple(f[12:18]), tuple(f[18:24]) if with_psi else psi0
+    compose, pack, unpack = _carry(n_prev, len(cols), jacobian, with_psi, arr, psi0)
 
     def looped(carry, x):
         step = _interval_step(x, active, [1.0] * 6, 1.0, with_rest, qv, qdv, with_psi, jacobian)
