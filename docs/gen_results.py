@@ -406,6 +406,22 @@ def mpc_derivative(root: Path) -> str:
     return "\n\n".join(parts)
 
 
+def gradient(root: Path) -> str:
+    """Reverse mode against the forward pass (``benchmarks/gradient.json``)."""
+    sys.path.insert(0, str(root / "experiments" / "benchmarks"))
+    import bench_gradient
+
+    parts = []
+    for name, title in (("gradient_before", "Before (the code at the tree named in the data)"),
+                        ("gradient", "Now")):
+        path = root / "benchmarks" / f"{name}.json"
+        d = json.loads(path.read_text())
+        note = f" {d['note'][0].upper()}{d['note'][1:]}." if "note" in d else ""
+        parts.append(f"**{title}.**{note}\n\n{bench_gradient.report(str(path))}\n\nData: `benchmarks/{name}.json`."
+                     f"\n\n```bash\n{d['command']}\n```")
+    return "\n\n".join(parts)
+
+
 def mpc_bc(root: Path) -> str:
     """Behaviour cloning of the gradient MPC against the PPO default (``benchmarks/mpc_bc/*.json``)."""
     sys.path.insert(0, str(root / "experiments" / "studies"))
@@ -720,6 +736,7 @@ STUDIES = {
     "benchmark_task_runs": benchmark_task_runs,
     "mpc_reference": mpc_reference,
     "mpc_derivative": mpc_derivative,
+    "gradient": gradient,
     "mpc_bc": mpc_bc,
     "elastica_twins": elastica_twins,
     "elastica_twist": elastica_twist,
