@@ -44,13 +44,13 @@ def quaternion(R: jax.Array) -> jax.Array:
     rows = []
     for i in range(3):
         j, k = (i + 1) % 3, (i + 2) % 3
-        q = [None] * 4
+        q: list[jax.Array] = [tr] * 4  # every slot is set below
         q[i], q[j], q[k] = 1.0 - tr + 2.0 * R[i, i], R[j, i] + R[i, j], R[k, i] + R[i, k]
         q[3] = R[k, j] - R[j, k]
         rows.append(jnp.stack(q))
     rows.append(jnp.stack([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1], 1.0 + tr]))
-    q = jnp.stack(rows)[choice]
-    return q / jnp.linalg.norm(q)
+    quat = jnp.stack(rows)[choice]
+    return quat / jnp.linalg.norm(quat)
 
 
 def yaw_quaternion(yaw: jax.Array) -> jax.Array:
