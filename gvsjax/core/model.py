@@ -201,7 +201,9 @@ class SoftLink:
     or the DoFs, for spatial links) or "auto" (scan a link of 2 or more Gauss
     points once the robot has 12 DoFs, or in a robot of at most 6 DoFs once its
     unrolled pass would be large: a 6-DoF spatial rod from 4 Gauss points;
-    ``scan.uses_scan``). The results agree to rounding.
+    ``scan.uses_scan``). The results agree to rounding. Scanned links that follow each
+    other on joints with no DoFs (a chain, in a robot of more than 6 DoFs) share one
+    loop (``scan.chain_groups``).
 
     ``torsion_constant`` picks the Jt of the torsional stiffness G Jt (see the field).
     The section damping matrix is ``damping * diag(J, 3I, 3I, 3A, A, A)``
