@@ -192,9 +192,12 @@ def test_the_front_pages_show_one_table_of_tasks():
 
 def test_every_registered_task_is_on_the_front_pages():
     """A task has its row, or is a variant shown on its task's page, or is one of the benchmark tasks."""
-    from gvsjax.tasks import registered
+    import re
 
+    # the library's own registry lines: other tests register tasks of their own in this process
+    tasks = re.findall(r'^register\("(\w+)"', (ROOT / "gvsjax" / "tasks" / "__init__.py").read_text(), re.M)
+    assert len(tasks) >= 10, tasks
     pages = {gen_results.TASK_PAGES[t] for t in gen_results.EPISODES}
-    for task in registered():
+    for task in tasks:
         assert (task in gen_results.EPISODES or gen_results.TASK_PAGES.get(task) in pages
                 or f"`{task}`" in gen_results.BENCHMARK_ROW[0]), task
