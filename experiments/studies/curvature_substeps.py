@@ -35,18 +35,7 @@ STEPS = 20
 
 def episode(arm: ArmControl, actions: jax.Array) -> jax.Array:
     """Tip positions (STEPS, 3) of one episode under ``actions`` (STEPS, 10)."""
-    robot = arm.robot
-    n = robot.n_dofs
-
-    def one(carry, a):
-        q, qd, kappa, twist = carry
-        new_kappa, new_twist = control.apply(arm, kappa, twist, a)
-        tr = control.advance(arm, q, qd, control.rest_values(robot, kappa, twist),
-                             control.rest_values(robot, new_kappa, new_twist))
-        return (tr.q[-1], tr.qd[-1], new_kappa, new_twist), tr.tip[-1]
-
-    init = (jnp.zeros(n), jnp.zeros(n), jnp.zeros((5, 2)), jnp.zeros(5))
-    return jax.lax.scan(one, init, actions)[1]
+    return control.open_loop_tips(arm, actions)
 
 
 def main(batch: int = 256, episodes: int = 64) -> dict:

@@ -69,20 +69,7 @@ def angles(actions: np.ndarray, arm: ArmControl) -> np.ndarray:
 
 def gvsjax_tips(arm: ArmControl, actions: np.ndarray) -> np.ndarray:
     """(n, steps, 3) tips after each control step of ``actions`` (n, steps, 10)."""
-    robot = arm.robot
-
-    def episode(acts):
-        def one(carry, a):
-            q, qd, kappa, twist = carry
-            new_kappa, new_twist = control.apply(arm, kappa, twist, a)
-            tr = control.advance(arm, q, qd, control.rest_values(robot, kappa, twist),
-                                 control.rest_values(robot, new_kappa, new_twist))
-            return (tr.q[-1], tr.qd[-1], new_kappa, new_twist), tr.tip[-1]
-
-        zero = jnp.zeros(robot.n_dofs)
-        return jax.lax.scan(one, (zero, zero, jnp.zeros((5, 2)), jnp.zeros(5)), acts)[1]
-
-    return np.asarray(jax.jit(jax.vmap(episode))(jnp.asarray(actions)))
+    return np.asarray(jax.jit(jax.vmap(lambda a: control.open_loop_tips(arm, a)))(jnp.asarray(actions)))
 
 
 def node_weights(n_el: int) -> np.ndarray:

@@ -116,6 +116,23 @@ def advance(arm: ArmControl, q, qd, rest_from, rest_to):
     return jax.tree_util.tree_map(lambda x: x.astype(float), tr)
 
 
+def open_loop_tips(arm: ArmControl, actions: jax.Array) -> jax.Array:
+    """Tip positions (T, 3) after each of T control steps of ``actions`` (T, n_actions), from the arm
+    straight and at rest with zero turning angles: the control step without a task (no target, no
+    reward, no failure check). Works under ``jit``, ``vmap`` (a batch of action sequences) and ``grad``."""
+    robot = arm.robot
+    directions, _ = layout(robot)
+
+    def one(carry, a):
+        q, qd, kappa, twist = carry
+        new_kappa, new_twist = apply(arm, kappa, twist, a)
+        tr = advance(arm, q, qd, rest_values(robot, kappa, twist), rest_values(robot, new_kappa, new_twist))
+        return (tr.q[-1], tr.qd[-1], new_kappa, new_twist), tr.tip[-1]
+
+    zero = jnp.zeros(robot.n_dofs)
+    return jax.lax.scan(one, (zero, zero, jnp.zeros((N_POINTS, directions)), jnp.zeros(N_POINTS)), actions)[1]
+
+
 def nodes(robot: Robot, q, qd) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Positions (10, 3), velocities (10, 3) of the observed nodes (0.1 m apart, the last the tip)
     and the tip's rotation (3, 3)."""
@@ -145,4 +162,4 @@ def discounted_returns(rewards: np.ndarray, valid: np.ndarray | None = None, gam
 
 
 __all__: list[Any] = ["N_POINTS", "GAMMA", "ArmControl", "layout", "check", "n_actions", "apply", "rest_values",
-                      "advance", "nodes", "healthy", "with_sim_dtype", "discounted_returns"]
+                      "advance", "open_loop_tips", "nodes", "healthy", "with_sim_dtype", "discounted_returns"]
